@@ -1,0 +1,1 @@
+"""Comparison with Cycles (bpy-free): metrics, reference cache, cost/accuracy sweep, report."""
