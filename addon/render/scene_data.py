@@ -1,0 +1,274 @@
+"""SceneData: the bpy-free description of one frame of a Blender scene.
+
+Everything the renderer and the comparison need crosses the bpy boundary here, as numpy
+arrays and plain Python values. ``addon/blender/export.py`` is the only producer; every
+pass, technique and metric is a consumer. Units are Cycles' (see docs/ARCHITECTURE.md):
+
+* positions in metres, world space is Blender's (Z up);
+* point/spot ``intensity`` in W/sr (``P * color / (4 pi)``), sun ``irradiance`` in W/m^2,
+  area ``radiance`` in W/(m^2 sr), emission ``radiance`` = colour * strength, world
+  ``radiance`` = colour * strength;
+* colours are linear scene-referred RGB (Blender's working space, Rec.709 primaries).
+
+Meshes are triangle soups per corner (three corners per triangle, ``positions[3*t+k]``),
+which is what Blender's loop triangles give and what both rasterisation and BVH building
+want. Instances place meshes in the world, so a mesh used by many objects is stored once.
+"""
+from __future__ import annotations
+
+import dataclasses
+import enum
+import hashlib
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+class LightType(enum.IntEnum):
+    POINT = 0
+    SPOT = 1
+    SUN = 2
+    AREA = 3
+
+
+class AreaShape(enum.IntEnum):
+    SQUARE = 0
+    RECTANGLE = 1
+    DISK = 2
+    ELLIPSE = 3
+
+
+@dataclass
+class Mesh:
+    """One evaluated mesh, triangulated, in object space.
+
+    positions, normals: (3*T, 3) float32, per triangle corner.
+    uvs: (3*T, 2) float32 (zeros when the mesh has no UV map).
+    material_slots: (T,) int32, index into ``SceneData.materials`` (already resolved
+    through the object's material slots; -1 = default material).
+    """
+
+    name: str
+    positions: np.ndarray
+    normals: np.ndarray
+    uvs: np.ndarray
+    material_ids: np.ndarray
+
+    @property
+    def triangle_count(self) -> int:
+        return int(self.material_ids.shape[0])
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        if self.positions.shape[0] == 0:
+            z = np.zeros(3, np.float32)
+            return z, z
+        return self.positions.min(axis=0), self.positions.max(axis=0)
+
+
+@dataclass
+class Instance:
+    """A mesh placed in the world. ``matrix``: (4,4) float32 object-to-world."""
+
+    mesh: int
+    matrix: np.ndarray
+    object_name: str
+    # Per-instance material override: maps a mesh's material id to another (object-linked
+    # materials); None when the mesh's own ids apply.
+    material_map: np.ndarray | None = None
+
+
+@dataclass
+class Material:
+    """The Principled BSDF subset GI Preview renders (Blender 4.x/5.x inputs)."""
+
+    name: str
+    base_color: tuple[float, float, float] = (0.8, 0.8, 0.8)
+    metallic: float = 0.0
+    roughness: float = 0.5
+    ior: float = 1.5
+    specular_ior_level: float = 0.5
+    specular_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    alpha: float = 1.0
+    emission_color: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    emission_strength: float = 0.0
+    base_color_texture: int = -1  # index into SceneData.textures, -1 = none
+    # True when the material's node tree was fully understood; False = viewport-colour fallback.
+    exact: bool = True
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def emission(self) -> np.ndarray:
+        return np.asarray(self.emission_color, np.float32) * np.float32(self.emission_strength)
+
+    @property
+    def is_emissive(self) -> bool:
+        return float(np.max(self.emission)) > 0.0
+
+    @property
+    def is_glossy(self) -> bool:
+        """Does the material show a visible specular lobe (mirror to moderately rough)?"""
+        spec = self.metallic > 0.0 or self.specular_ior_level > 0.0
+        return bool(spec and self.roughness < 0.6)
+
+
+@dataclass
+class Texture:
+    """An image texture, linear float RGBA (H, W, 4), row 0 at the bottom (Blender's order)."""
+
+    name: str
+    pixels: np.ndarray
+
+
+@dataclass
+class Light:
+    """One Blender light, in Cycles' units.
+
+    ``matrix`` is the light object's world matrix (columns: X, Y, Z axes scaled, translation);
+    lights emit along -Z. ``color`` is the per-type quantity described in the module
+    docstring (intensity, irradiance or radiance), RGB, including colour, temperature and
+    exposure.
+    """
+
+    name: str
+    type: LightType
+    matrix: np.ndarray
+    color: np.ndarray  # RGB float32 in the type's unit
+    radius: float = 0.0  # point/spot sphere radius (m)
+    spot_size: float = 0.0  # full cone angle (rad)
+    spot_blend: float = 0.0
+    angle: float = 0.0  # sun: angular diameter (rad)
+    shape: AreaShape = AreaShape.SQUARE
+    size: tuple[float, float] = (1.0, 1.0)  # area: size along local X and Y (before object scale)
+    spread: float = np.pi  # area: Cycles' spread angle (rad)
+    cast_shadow: bool = True
+    power: float = 0.0  # the light's power in W (sun: W/m^2), for light selection
+
+    @property
+    def position(self) -> np.ndarray:
+        return np.asarray(self.matrix[:3, 3], np.float32)
+
+    @property
+    def direction(self) -> np.ndarray:
+        """Unit vector along which the light shines (local -Z in world space)."""
+        d = -np.asarray(self.matrix[:3, 2], np.float64)
+        n = np.linalg.norm(d)
+        return (d / n if n > 0 else np.array([0, 0, -1.0])).astype(np.float32)
+
+    def area_axes(self) -> tuple[np.ndarray, np.ndarray]:
+        """World-space half-extent vectors of an area light (X and Y half sizes)."""
+        sx, sy = self.size
+        if self.shape in (AreaShape.SQUARE, AreaShape.DISK):
+            sy = sx
+        u = np.asarray(self.matrix[:3, 0], np.float32) * np.float32(0.5 * sx)
+        v = np.asarray(self.matrix[:3, 1], np.float32) * np.float32(0.5 * sy)
+        return u, v
+
+    def area(self) -> float:
+        u, v = self.area_axes()
+        full = float(np.linalg.norm(np.cross(u, v))) * 4.0
+        if self.shape in (AreaShape.DISK, AreaShape.ELLIPSE):
+            full *= np.pi / 4.0
+        return full
+
+
+@dataclass
+class Camera:
+    """The render camera. Matrices are OpenGL-style (clip = proj @ view @ world)."""
+
+    name: str
+    matrix_world: np.ndarray  # (4,4) camera-to-world
+    projection: np.ndarray  # (4,4), from Camera.calc_matrix_camera
+    type: str = "PERSP"  # PERSP | ORTHO
+    clip_start: float = 0.1
+    clip_end: float = 100.0
+
+    @property
+    def view(self) -> np.ndarray:
+        return np.linalg.inv(self.matrix_world.astype(np.float64)).astype(np.float32)
+
+    @property
+    def position(self) -> np.ndarray:
+        return np.asarray(self.matrix_world[:3, 3], np.float32)
+
+    @property
+    def forward(self) -> np.ndarray:
+        d = -np.asarray(self.matrix_world[:3, 2], np.float64)
+        return (d / np.linalg.norm(d)).astype(np.float32)
+
+
+@dataclass
+class World:
+    """Uniform world background: radiance = colour * strength (W/(m^2 sr))."""
+
+    color: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
+    exact: bool = True
+    warnings: list[str] = field(default_factory=list)
+
+
+@dataclass
+class SceneData:
+    """Everything one frame needs. Produced by the exporter, consumed by the renderer."""
+
+    meshes: list[Mesh] = field(default_factory=list)
+    instances: list[Instance] = field(default_factory=list)
+    materials: list[Material] = field(default_factory=list)
+    textures: list[Texture] = field(default_factory=list)
+    lights: list[Light] = field(default_factory=list)
+    camera: Camera | None = None
+    world: World = field(default_factory=World)
+    width: int = 256
+    height: int = 256
+    frame: int = 1
+    name: str = "scene"
+    warnings: list[str] = field(default_factory=list)
+
+    # ---------------------------------------------------------------- queries
+    @property
+    def triangle_count(self) -> int:
+        return sum(self.meshes[i.mesh].triangle_count for i in self.instances)
+
+    def world_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Axis-aligned bounds of all instances in world space."""
+        lo = np.full(3, np.inf, np.float64)
+        hi = np.full(3, -np.inf, np.float64)
+        for inst in self.instances:
+            mlo, mhi = self.meshes[inst.mesh].bounds()
+            corners = np.array([[x, y, z, 1.0] for x in (mlo[0], mhi[0]) for y in (mlo[1], mhi[1])
+                                for z in (mlo[2], mhi[2])])
+            w = corners @ inst.matrix.astype(np.float64).T
+            lo = np.minimum(lo, w[:, :3].min(axis=0))
+            hi = np.maximum(hi, w[:, :3].max(axis=0))
+        if not np.all(np.isfinite(lo)):
+            lo = np.zeros(3)
+            hi = np.zeros(3)
+        return lo.astype(np.float32), hi.astype(np.float32)
+
+    def fingerprint(self) -> str:
+        """A stable hash of everything that affects the rendered image."""
+        h = hashlib.sha256()
+
+        def add(x):
+            if isinstance(x, np.ndarray):
+                h.update(str(x.dtype).encode())
+                h.update(str(x.shape).encode())
+                h.update(np.ascontiguousarray(x).tobytes())
+            elif dataclasses.is_dataclass(x):
+                for f in dataclasses.fields(x):
+                    if f.name == "warnings":
+                        continue
+                    h.update(f.name.encode())
+                    add(getattr(x, f.name))
+            elif isinstance(x, (list, tuple)):
+                h.update(b"[")
+                for y in x:
+                    add(y)
+                h.update(b"]")
+            else:
+                h.update(repr(x).encode())
+
+        add(self)
+        return h.hexdigest()
+
+
+class SceneError(ValueError):
+    """A scene that cannot be rendered, with a message for the user."""
