@@ -1,0 +1,1 @@
+"""The bpy side of GI Preview: engine, scene export, properties, panels, operators."""

@@ -1,0 +1,520 @@
+"""Blender depsgraph -> SceneData: the only converter from bpy to the renderer's data.
+
+``export_scene(depsgraph, *, width=None, height=None, camera=None) -> SceneData``
+
+* Geometry: every visible mesh instance of ``depsgraph.object_instances`` (modifiers,
+  collection instances, geometry-nodes instances), triangulated by Blender's loop triangles,
+  read with ``foreach_get`` and numpy indexing only. Meshes are deduplicated by their
+  evaluated data (and the materials their object's slots resolve to), so an instanced mesh
+  is stored once. Curves, text, surfaces and metaballs come through ``to_mesh()`` when the
+  depsgraph does not already give their mesh as an instance.
+* Materials: the Principled BSDF (and Emission / Diffuse / Glossy / Metallic BSDFs) behind
+  the Cycles output node; an Image Texture on Base Color becomes a ``Texture``. Anything
+  else falls back to the material's viewport colour with ``exact=False`` and a warning.
+* Lights in Cycles' units (checked against Cycles renders, see blender_tests/test_export.py):
+  point/spot intensity ``P*color/(4 pi)`` W/sr, sun irradiance ``E*color`` W/m^2, area
+  radiance ``P*color/(pi*A)`` (``normalize``) or ``P*color/pi``; all times ``2**exposure``
+  and the blackbody colour when ``use_temperature``.
+* Camera from ``calc_matrix_camera`` (sensor fit, shift, pixel aspect included).
+
+Exporting never changes the scene: evaluated data is only read, ``to_mesh`` meshes are
+freed with ``to_mesh_clear``.
+"""
+from __future__ import annotations
+
+import math
+
+import bpy
+import numpy as np
+
+from ..render.scene_data import (AreaShape, Camera, Instance, Light, LightType, Material,
+                                 Mesh, SceneData, SceneError, Texture, World)
+
+__all__ = ["export_scene", "DEFAULT_MATERIAL_NAME"]
+
+DEFAULT_MATERIAL_NAME = "GI Preview Default"
+_GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
+_TO_MESH_TYPES = {"CURVE", "SURFACE", "FONT", "META"}
+_AREA_SHAPES = {"SQUARE": AreaShape.SQUARE, "RECTANGLE": AreaShape.RECTANGLE,
+                "DISK": AreaShape.DISK, "ELLIPSE": AreaShape.ELLIPSE}
+_LIGHT_TYPES = {"POINT": LightType.POINT, "SPOT": LightType.SPOT, "SUN": LightType.SUN,
+                "AREA": LightType.AREA}
+_PASS_THROUGH = {"NodeReroute"}
+
+
+# ------------------------------------------------------------------------------ helpers
+def _matrix(m) -> np.ndarray:
+    return np.array(m, dtype=np.float32).reshape(4, 4)
+
+
+def _rgb(v) -> tuple[float, float, float]:
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
+def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def _follow(socket):
+    """The (node, output socket) linked into ``socket``, skipping reroutes; None if unlinked."""
+    seen = 0
+    while socket is not None and socket.is_linked and seen < 64:
+        link = next((lk for lk in socket.links if lk.is_valid and not lk.is_muted), None)
+        if link is None:
+            return None
+        node = link.from_node
+        if node.bl_idname in _PASS_THROUGH:
+            socket = node.inputs[0] if node.inputs else None
+            seen += 1
+            continue
+        return node, link.from_socket
+    return None
+
+
+def _node_tree(idblock):
+    """The shader node tree in use (``use_nodes`` is deprecated and always on in 5.0)."""
+    if bpy.app.version < (5, 0, 0) and not getattr(idblock, "use_nodes", True):
+        return None
+    return idblock.node_tree
+
+
+def _output_node(tree):
+    if tree is None:
+        return None
+    node = tree.get_output_node("CYCLES")
+    if node is None:
+        node = tree.get_output_node("ALL")
+    return node
+
+
+# ------------------------------------------------------------------------------ exporter
+class _Exporter:
+    def __init__(self, depsgraph):
+        self.depsgraph = depsgraph
+        self.data = SceneData()
+        self._material_ids: dict[int, int] = {}
+        self._texture_ids: dict[int, int] = {}
+        self._mesh_ids: dict[tuple, int] = {}
+        self._default_material: int | None = None
+
+    # -------------------------------------------------------------- warnings
+    def warn(self, msg: str) -> None:
+        if msg not in self.data.warnings:
+            self.data.warnings.append(msg)
+
+    # -------------------------------------------------------------- materials
+    def default_material(self) -> int:
+        if self._default_material is None:
+            self._default_material = len(self.data.materials)
+            self.data.materials.append(Material(name=DEFAULT_MATERIAL_NAME,
+                                                base_color=(0.8, 0.8, 0.8), roughness=0.5))
+        return self._default_material
+
+    def material(self, mat) -> int:
+        if mat is None:
+            return self.default_material()
+        orig = getattr(mat, "original", None) or mat
+        key = orig.as_pointer()
+        if key in self._material_ids:
+            return self._material_ids[key]
+        m = self._convert_material(mat)
+        for w in m.warnings:
+            self.warn(w)
+        idx = len(self.data.materials)
+        self.data.materials.append(m)
+        self._material_ids[key] = idx
+        return idx
+
+    def _fallback(self, mat, reason: str) -> Material:
+        msg = f"Material '{mat.name}': {reason}; using the viewport colour"
+        return Material(name=mat.name, base_color=_rgb(mat.diffuse_color),
+                        metallic=float(mat.metallic), roughness=float(mat.roughness),
+                        alpha=float(mat.diffuse_color[3]), exact=False, warnings=[msg])
+
+    def _convert_material(self, mat) -> Material:
+        tree = _node_tree(mat)
+        if tree is None:
+            return self._fallback(mat, "has no shader node tree")
+        out = _output_node(tree)
+        if out is None:
+            return self._fallback(mat, "has no Material Output node")
+        surf = out.inputs.get("Surface")
+        found = _follow(surf) if surf is not None else None
+        if found is None:
+            # Cycles renders an unconnected surface black.
+            return Material(name=mat.name, base_color=(0.0, 0.0, 0.0), roughness=1.0,
+                            specular_ior_level=0.0)
+        node, _ = found
+        kind = node.bl_idname
+        if kind == "ShaderNodeBsdfPrincipled":
+            return self._principled(mat, node)
+        if kind == "ShaderNodeEmission":
+            bad = self._linked(node, ("Color", "Strength"))
+            if bad:
+                return self._fallback(mat, bad)
+            return Material(name=mat.name, base_color=(0.0, 0.0, 0.0), roughness=1.0,
+                            specular_ior_level=0.0,
+                            emission_color=_rgb(node.inputs["Color"].default_value),
+                            emission_strength=float(node.inputs["Strength"].default_value))
+        if kind == "ShaderNodeBsdfDiffuse":
+            bad = self._linked(node, ("Roughness",))
+            if bad:
+                return self._fallback(mat, bad)
+            m = Material(name=mat.name, roughness=1.0, specular_ior_level=0.0)
+            return self._base_color(mat, node, node.inputs["Color"], m)
+        if kind in ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfMetallic"):
+            col = node.inputs.get("Color") or node.inputs.get("Base Color")
+            bad = self._linked(node, ("Roughness",))
+            if bad:
+                return self._fallback(mat, bad)
+            m = Material(name=mat.name, metallic=1.0,
+                         roughness=float(node.inputs["Roughness"].default_value))
+            return self._base_color(mat, node, col, m)
+        return self._fallback(mat, f"shader node '{node.name}' ({kind}) on 'Surface' is not supported")
+
+    @staticmethod
+    def _linked(node, names) -> str | None:
+        """A reason string when one of ``names`` is driven by a link, else None."""
+        for name in names:
+            sock = node.inputs.get(name)
+            if sock is None:
+                continue
+            found = _follow(sock)
+            if found is not None:
+                src = found[0]
+                return f"node '{src.name}' ({src.bl_idname}) on '{name}' is not supported"
+        return None
+
+    def _base_color(self, mat, bsdf, socket, m: Material) -> Material:
+        """Read an unlinked colour, or an Image Texture linked into it, into ``m``."""
+        found = _follow(socket)
+        if found is None:
+            m.base_color = _rgb(socket.default_value)
+            return m
+        node, out = found
+        if node.bl_idname != "ShaderNodeTexImage" or out.name != "Color" or node.image is None:
+            return self._fallback(mat, f"node '{node.name}' ({node.bl_idname}) on '{socket.name}' "
+                                       "is not supported")
+        tex = self.texture(node.image)
+        if tex < 0:
+            return self._fallback(mat, f"image '{node.image.name}' in node '{node.name}' "
+                                       "(ShaderNodeTexImage) has no pixels")
+        m.base_color_texture = tex
+        # Consumers that ignore textures still see the right average colour.
+        m.base_color = _rgb(self.data.textures[tex].pixels[..., :3].reshape(-1, 3).mean(axis=0))
+        vec = node.inputs.get("Vector")
+        if vec is not None and _follow(vec) is not None:
+            src = _follow(vec)[0]
+            m.exact = False
+            m.warnings.append(f"Material '{mat.name}': node '{src.name}' ({src.bl_idname}) on "
+                              f"'{node.name}' Vector is ignored; using the active UV map")
+        if node.interpolation == "Closest" or node.extension not in ("REPEAT",):
+            pass  # sampling details are the renderer's; repeat + linear assumed
+        return m
+
+    def _principled(self, mat, node) -> Material:
+        inp = node.inputs
+        scalar = ("Metallic", "Roughness", "IOR", "Alpha", "Specular IOR Level",
+                  "Emission Strength")
+        bad = self._linked(node, scalar + ("Specular Tint", "Emission Color"))
+        if bad:
+            return self._fallback(mat, bad)
+        m = Material(
+            name=mat.name,
+            metallic=float(inp["Metallic"].default_value),
+            roughness=float(inp["Roughness"].default_value),
+            ior=float(inp["IOR"].default_value),
+            specular_ior_level=float(inp["Specular IOR Level"].default_value),
+            specular_tint=_rgb(inp["Specular Tint"].default_value),
+            alpha=float(inp["Alpha"].default_value),
+            emission_color=_rgb(inp["Emission Color"].default_value),
+            emission_strength=float(inp["Emission Strength"].default_value),
+        )
+        res = self._base_color(mat, node, inp["Base Color"], m)
+        if res is not m:
+            return res  # fell back to the viewport colour
+        # Lobes GI Preview does not model: keep the Principled values, flag them.
+        ignored = []
+        for name in ("Transmission Weight", "Coat Weight", "Sheen Weight", "Subsurface Weight"):
+            s = inp.get(name)
+            if s is not None and (s.is_linked or float(s.default_value) > 0.0):
+                ignored.append(name)
+        for name in ("Normal",):
+            s = inp.get(name)
+            if s is not None and _follow(s) is not None:
+                ignored.append(name)
+        if ignored:
+            m.exact = False
+            m.warnings.append(f"Material '{mat.name}': Principled BSDF '{node.name}' inputs "
+                              f"{', '.join(repr(n) for n in ignored)} are ignored")
+        return m
+
+    def texture(self, image) -> int:
+        orig = getattr(image, "original", None) or image
+        key = orig.as_pointer()
+        if key in self._texture_ids:
+            return self._texture_ids[key]
+        w, h = (int(image.size[0]), int(image.size[1]))
+        idx = -1
+        if w > 0 and h > 0:
+            px = np.empty(w * h * 4, np.float32)
+            image.pixels.foreach_get(px)
+            px = px.reshape(h, w, 4)
+            cs = image.colorspace_settings.name
+            if not image.is_float and "srgb" in cs.lower() and "linear" not in cs.lower():
+                px[..., :3] = _srgb_to_linear(px[..., :3])
+            elif cs.lower() not in ("non-color", "linear rec.709", "linear", "raw") and \
+                    "linear" not in cs.lower() and not image.is_float:
+                self.warn(f"Image '{image.name}': colour space '{cs}' is treated as linear")
+            idx = len(self.data.textures)
+            self.data.textures.append(Texture(name=image.name, pixels=np.ascontiguousarray(px)))
+        self._texture_ids[key] = idx
+        return idx
+
+    # -------------------------------------------------------------- geometry
+    def slot_materials(self, ob, mesh) -> tuple[int, ...]:
+        slots = ob.material_slots
+        if len(slots):
+            return tuple(self.material(s.material) for s in slots)
+        mats = getattr(mesh, "materials", None)
+        if mats is not None and len(mats):
+            return tuple(self.material(m) for m in mats)
+        return (self.default_material(),)
+
+    def add_mesh(self, key, mesh, lut: tuple[int, ...], name: str) -> int:
+        full_key = (key, lut)
+        idx = self._mesh_ids.get(full_key)
+        if idx is None:
+            idx = len(self.data.meshes)
+            self.data.meshes.append(_read_mesh(mesh, np.asarray(lut, np.int32), name))
+            self._mesh_ids[full_key] = idx
+        return idx
+
+    def add_instance(self, mesh_idx: int, matrix, object_name: str) -> None:
+        if self.data.meshes[mesh_idx].triangle_count == 0:
+            return
+        self.data.instances.append(Instance(mesh=mesh_idx, matrix=_matrix(matrix),
+                                            object_name=object_name))
+
+    def run_geometry_and_lights(self) -> None:
+        dg = self.depsgraph
+        render_mode = dg.mode == "RENDER"
+        deferred = []  # curve/text/metaball objects whose mesh may come as an instance
+        mesh_parents = set()
+        for inst in dg.object_instances:
+            ob = inst.object
+            orig = ob.original
+            if not render_mode and orig.hide_render:
+                continue
+            if inst.is_instance:
+                par = inst.parent
+                if par is not None and par.original.hide_render and not render_mode:
+                    continue
+            elif not inst.show_self:
+                continue
+            typ = ob.type
+            if typ == "LIGHT":
+                self.light(ob, inst.matrix_world)
+            elif typ == "MESH":
+                mesh = ob.data
+                if mesh is None or len(mesh.polygons) == 0:
+                    continue
+                if inst.is_instance and inst.parent is not None and \
+                        inst.parent.original.type in _TO_MESH_TYPES:
+                    mesh_parents.add(inst.parent.original.as_pointer())
+                lut = self.slot_materials(ob, mesh)
+                idx = self.add_mesh(("data", mesh.as_pointer()), mesh, lut,
+                                    mesh.name if not inst.is_instance else f"{orig.name}:{mesh.name}")
+                self.add_instance(idx, inst.matrix_world, orig.name)
+            elif typ in _TO_MESH_TYPES and not inst.is_instance:
+                deferred.append((orig, _matrix(inst.matrix_world)))
+        for orig, matrix in deferred:
+            if orig.as_pointer() in mesh_parents:
+                continue
+            ob = orig.evaluated_get(dg)
+            try:
+                mesh = ob.to_mesh()
+            except RuntimeError:
+                mesh = None
+            try:
+                if mesh is not None and len(mesh.polygons):
+                    lut = self.slot_materials(ob, mesh)
+                    idx = self.add_mesh(("to_mesh", orig.as_pointer()), mesh, lut, orig.name)
+                    self.add_instance(idx, matrix, orig.name)
+            finally:
+                ob.to_mesh_clear()
+
+    # -------------------------------------------------------------- lights
+    def light(self, ob, matrix_world) -> None:
+        ld = ob.data
+        typ = _LIGHT_TYPES.get(ld.type)
+        if typ is None:
+            self.warn(f"Light '{ob.name}': type {ld.type} is not supported; skipped")
+            return
+        energy = float(ld.energy)
+        color = np.array(_rgb(ld.color), np.float64)
+        if getattr(ld, "use_temperature", False):
+            color *= np.array(_rgb(ld.temperature_color), np.float64)
+        color *= 2.0 ** float(getattr(ld, "exposure", 0.0))
+        m = _matrix(matrix_world)
+        light = Light(name=ob.original.name, type=typ, matrix=m, color=np.zeros(3, np.float32),
+                      cast_shadow=bool(getattr(ld, "use_shadow", True)), power=energy)
+        if typ in (LightType.POINT, LightType.SPOT):
+            value = energy * color / (4.0 * math.pi)
+            light.radius = float(ld.shadow_soft_size)
+            if typ == LightType.SPOT:
+                light.spot_size = float(ld.spot_size)
+                light.spot_blend = float(ld.spot_blend)
+        elif typ == LightType.SUN:
+            value = energy * color
+            light.angle = float(ld.angle)
+        else:
+            light.shape = _AREA_SHAPES.get(ld.shape, AreaShape.SQUARE)
+            sy = float(ld.size_y) if light.shape in (AreaShape.RECTANGLE, AreaShape.ELLIPSE) \
+                else float(ld.size)
+            light.size = (float(ld.size), sy)
+            light.spread = float(getattr(ld, "spread", math.pi))
+            if getattr(ld, "normalize", True):
+                area = light.area()
+                if area <= 0.0:
+                    self.warn(f"Light '{ob.name}': area light of zero area; skipped")
+                    return
+                value = energy * color / (math.pi * area)
+            else:
+                value = energy * color / math.pi
+        if getattr(ld, "use_nodes", False) and getattr(ld, "node_tree", None) is not None:
+            self.warn(f"Light '{ob.name}': light shader nodes are ignored")
+        light.color = np.asarray(value, np.float32)
+        self.data.lights.append(light)
+
+    # -------------------------------------------------------------- world
+    def world(self, scene) -> None:
+        wo = scene.world
+        if wo is None:
+            self.data.world = World()
+            return
+        tree = _node_tree(wo)
+        fallback_color = np.array(_rgb(wo.color), np.float32)
+        if tree is None:
+            self.data.world = World(color=fallback_color)
+            return
+        out = _output_node(tree)
+        found = _follow(out.inputs["Surface"]) if out is not None and "Surface" in out.inputs \
+            else None
+        if out is None or found is None:
+            self.data.world = World()  # no surface: Cycles renders black
+            return
+        node = found[0]
+        reason = None
+        if node.bl_idname != "ShaderNodeBackground":
+            reason = f"node '{node.name}' ({node.bl_idname}) on 'Surface' is not supported"
+        else:
+            for name in ("Color", "Strength"):
+                src = _follow(node.inputs[name])
+                if src is not None:
+                    reason = (f"node '{src[0].name}' ({src[0].bl_idname}) on '{name}' "
+                              "is not supported")
+                    break
+        if reason is None:
+            col = np.array(_rgb(node.inputs["Color"].default_value), np.float32)
+            self.data.world = World(color=col * np.float32(node.inputs["Strength"].default_value))
+            return
+        msg = f"World '{wo.name}': {reason}; using the viewport colour"
+        self.warn(msg)
+        self.data.world = World(color=fallback_color, exact=False, warnings=[msg])
+
+    # -------------------------------------------------------------- camera
+    def camera(self, scene, cam_ob, width: int, height: int) -> None:
+        if cam_ob is None:
+            raise SceneError(f"Scene '{scene.name}' has no camera: add a camera and set it as "
+                             "the scene camera (Scene Properties > Camera)")
+        if cam_ob.type != "CAMERA":
+            raise SceneError(f"Scene '{scene.name}': object '{cam_ob.name}' used as camera is "
+                             f"a {cam_ob.type}, not a camera")
+        ev = cam_ob.evaluated_get(self.depsgraph)
+        cd = ev.data
+        if cd.type not in ("PERSP", "ORTHO"):
+            raise SceneError(f"Scene '{scene.name}': camera '{cam_ob.name}' is panoramic "
+                             f"({cd.type}); GI Preview renders perspective and orthographic "
+                             "cameras only")
+        r = scene.render
+        proj = ev.calc_matrix_camera(self.depsgraph, x=width, y=height,
+                                     scale_x=r.pixel_aspect_x, scale_y=r.pixel_aspect_y)
+        self.data.camera = Camera(name=cam_ob.name, matrix_world=_matrix(ev.matrix_world),
+                                  projection=_matrix(proj), type=cd.type,
+                                  clip_start=float(cd.clip_start), clip_end=float(cd.clip_end))
+
+
+def _read_mesh(mesh, lut: np.ndarray, name: str) -> Mesh:
+    """Triangle-soup arrays of an evaluated mesh (no per-element Python loops)."""
+    mesh.calc_loop_triangles()
+    tris = mesh.loop_triangles
+    nt = len(tris)
+    corners = np.empty(3 * nt, np.int32)
+    tris.foreach_get("loops", corners)
+    nv = len(mesh.vertices)
+    pos = np.empty(3 * nv, np.float32)
+    mesh.attributes["position"].data.foreach_get("vector", pos)
+    pos = pos.reshape(nv, 3)
+    nl = len(mesh.loops)
+    cv_attr = mesh.attributes.get(".corner_vert")
+    corner_vert = np.empty(nl, np.int32)
+    if cv_attr is not None and cv_attr.domain == "CORNER" and cv_attr.data_type == "INT":
+        cv_attr.data.foreach_get("value", corner_vert)
+    else:
+        mesh.loops.foreach_get("vertex_index", corner_vert)
+    positions = pos[corner_vert[corners]]
+    nrm = np.empty(3 * nl, np.float32)
+    mesh.corner_normals.foreach_get("vector", nrm)
+    normals = nrm.reshape(nl, 3)[corners]
+    uv_layer = mesh.uv_layers.active_render if hasattr(mesh.uv_layers, "active_render") else None
+    if uv_layer is None:
+        uv_layer = mesh.uv_layers.active
+    if uv_layer is not None:
+        uv = np.empty(2 * nl, np.float32)
+        uv_layer.uv.foreach_get("vector", uv)
+        uvs = uv.reshape(nl, 2)[corners]
+    else:
+        uvs = np.zeros((3 * nt, 2), np.float32)
+    mat_attr = mesh.attributes.get("material_index")
+    if mat_attr is not None and mat_attr.domain == "FACE" and len(lut) > 1:
+        poly_mat = np.empty(len(mesh.polygons), np.int32)
+        mat_attr.data.foreach_get("value", poly_mat)
+        tri_poly = np.empty(nt, np.int32)
+        mesh.loop_triangle_polygons.foreach_get("value", tri_poly)
+        tri_mat = np.clip(poly_mat[tri_poly], 0, len(lut) - 1)
+        material_ids = lut[tri_mat]
+    else:
+        material_ids = np.full(nt, lut[0] if len(lut) else -1, np.int32)
+    return Mesh(name=name, positions=np.ascontiguousarray(positions),
+                normals=np.ascontiguousarray(normals), uvs=np.ascontiguousarray(uvs),
+                material_ids=np.ascontiguousarray(material_ids, dtype=np.int32))
+
+
+def export_scene(depsgraph, *, width: int | None = None, height: int | None = None,
+                 camera=None) -> SceneData:
+    """Convert an evaluated depsgraph into a :class:`SceneData`.
+
+    ``width``/``height`` default to the scene's render resolution times its percentage;
+    ``camera`` (a camera object) defaults to ``scene.camera``. Raises :class:`SceneError`
+    for a missing or panoramic camera and for a resolution below 4 pixels.
+    """
+    scene = depsgraph.scene_eval
+    r = scene.render
+    if width is None:
+        width = int(r.resolution_x * r.resolution_percentage / 100)
+    if height is None:
+        height = int(r.resolution_y * r.resolution_percentage / 100)
+    width, height = int(width), int(height)
+    if width < 4 or height < 4:
+        raise SceneError(f"Scene '{scene.name}': the render resolution {width}x{height} is too "
+                         "small; GI Preview needs at least 4x4 pixels")
+    ex = _Exporter(depsgraph)
+    ex.camera(scene, camera if camera is not None else scene.camera, width, height)
+    ex.run_geometry_and_lights()
+    ex.world(scene)
+    data = ex.data
+    data.width, data.height = width, height
+    data.frame = int(scene.frame_current)
+    data.name = scene.name
+    return data
