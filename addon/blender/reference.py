@@ -1,0 +1,497 @@
+"""Cycles references for the comparison: fair settings, every setting restored, cached.
+
+``render_cycles(scene, spp, kind, seed)`` renders the scene's camera, frame and resolution
+with Cycles and returns ``(image, time_ms)``: image float32 (H, W, 4), linear, row 0 = bottom.
+``get_reference(...)`` does the same through the on-disk cache (key: the exported scene's
+fingerprint + kind + spp + bounces + resolution + seed + Blender version), so a material or
+light change invalidates the entry and an unchanged scene is served from disk.
+
+Fair settings (see BLENDER_NOTES.md, "Cycles defaults that spoil a numeric comparison"):
+CPU device; box pixel filter of width 1 (each pixel integrates exactly its own square, like
+a rasteriser's pixel centre sample averaged over jitter); no denoising (scene and every view
+layer); no clamping (direct 0, indirect 0); ``blur_glossy`` 0; no adaptive sampling, no time
+limit, no sample subset, view-layer sample overrides ignored; fixed seed, not animated;
+light tree on (Cycles' default); caustics reflective and refractive on (Cycles' defaults);
+no path guiding; no fast-GI approximation; film opaque, exposure 1; no motion blur, no
+compositing, no sequencer, no border, 100 % resolution; output EXR float32 (scene-linear:
+the view transform is also set to Standard/no look/exposure 0/gamma 1 so nothing else can
+leak in).
+
+Reference kinds (bounce limits set on purpose, ``KIND_BOUNCES``):
+
+* ``full``: max 12 bounces, diffuse/glossy/transmission 12 each, transparent 8, volume 0
+  (GI Preview does not render volumes): the ground truth.
+* ``direct``: all bounces 0. Emission + light arriving straight from lights and the world
+  (with shadows), reflected once by the first surface, diffuse and specular.
+* ``one_bounce``: max 1, diffuse 1, glossy 1, transmission 1: direct light plus exactly one
+  indirect bounce *of any lobe*. Chosen over "diffuse 1, glossy 0" because the truncation
+  this reference removes is path *depth*: a one-bounce technique (RSM, LPV, DDGI, ReSTIR GI
+  with one bounce, SSR) models paths camera -> surface -> surface -> light, whatever the
+  lobes. With glossy 0 a mirror would show no reflection at all, and a technique that does
+  reflect one bounce (SSR, probes) would be charged for it as "error".
+* ``ao``: ambient occlusion as Cycles computes it (the Ambient Occlusion shader node,
+  cosine-weighted, ``ao_distance``), rendered through a temporary material override with an
+  emission = AO value, 0 bounces, transparent film; background pixels are 1 (unoccluded).
+  Cycles' own AO *pass* is not used: with the PyPI bpy 5.0 module, neither ``save_render``
+  nor ``render(write_still=True)`` writes any pass other than Combined into a multilayer
+  EXR (checked), and Render Result pixels are not readable from Python. The temporary
+  material is deleted afterwards.
+
+Cancel: one Cycles render is a single blocking ``bpy.ops.render.render()`` call which cannot
+be interrupted from Python; ``cancel()`` is checked before a render starts and after it ends
+(the result is then discarded). Callers that render several things (the Cycles curve) check
+it between renders.
+
+Nothing is left behind: every touched setting is restored by :class:`SettingsGuard` in a
+``finally`` (also on exceptions and cancel), temporary data-blocks are removed, and the
+temporary EXR file is deleted. Only the 'Render Result' image keeps the last render, as it
+does after any F12.
+"""
+from __future__ import annotations
+
+import os
+import re
+import tempfile
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+import bpy
+
+from ..compare import cache as _cache
+from ..compare import imageio
+
+KINDS = ("full", "direct", "one_bounce", "ao")
+DEFAULT_SEED = 0
+DEFAULT_AO_DISTANCE = 1.0
+
+_B = ("max_bounces", "diffuse_bounces", "glossy_bounces", "transmission_bounces", "volume_bounces",
+      "transparent_max_bounces")
+KIND_BOUNCES = {
+    "full": dict(zip(_B, (12, 12, 12, 12, 0, 8))),
+    "direct": dict(zip(_B, (0, 0, 0, 0, 0, 8))),
+    "one_bounce": dict(zip(_B, (1, 1, 1, 1, 0, 8))),
+    "ao": dict(zip(_B, (0, 0, 0, 0, 0, 8))),
+}
+
+
+class ReferenceCancelled(Exception):
+    """Raised when ``cancel()`` returned True before or after a Cycles render."""
+
+
+def ensure_oiio():
+    """Make Blender's bundled OpenImageIO importable (PyPI bpy needs this) and return it."""
+    try:
+        bpy.utils.expose_bundled_modules()
+    except AttributeError:  # a Blender build where it is importable already
+        pass
+    return imageio.oiio()
+
+
+# ---------------------------------------------------------------- settings guard
+_SEG = re.compile(r'([A-Za-z_][A-Za-z0-9_]*)(?:\[("([^"]*)"|\'([^\']*)\'|(-?\d+))\])?$')
+
+
+def _split(path: str) -> list[tuple[str, object]]:
+    out = []
+    # split on dots outside of brackets/quotes
+    parts, buf, depth, quote = [], "", 0, None
+    for ch in path:
+        if quote:
+            buf += ch
+            if ch == quote:
+                quote = None
+            continue
+        if ch in "\"'":
+            quote = ch
+        elif ch == "[":
+            depth += 1
+        elif ch == "]":
+            depth -= 1
+        if ch == "." and depth == 0:
+            parts.append(buf)
+            buf = ""
+        else:
+            buf += ch
+    parts.append(buf)
+    for p in parts:
+        m = _SEG.match(p)
+        if not m:
+            raise ValueError(f"bad attribute path segment {p!r} in {path!r}")
+        key = m.group(3) if m.group(3) is not None else m.group(4)
+        if key is None and m.group(5) is not None:
+            key = int(m.group(5))
+        out.append((m.group(1), key))
+    return out
+
+
+def resolve(root, path: str):
+    """(owner, attribute name) of a dotted path like ``view_layers["ViewLayer"].cycles.use_denoising``."""
+    segs = _split(path)
+    obj = root
+    for i, (name, key) in enumerate(segs):
+        last = i == len(segs) - 1
+        if last and key is None:
+            return obj, name
+        obj = getattr(obj, name)
+        if key is not None:
+            obj = obj[key]
+    raise ValueError(f"path {path!r} ends in an item, not an attribute")
+
+
+def _plain(v):
+    """A comparable, detached copy of a property value (bpy arrays -> tuples)."""
+    if isinstance(v, (str, int, float, bool)) or v is None:
+        return v
+    try:
+        if hasattr(v, "bl_rna") or hasattr(v, "rna_type"):
+            return v  # an ID/struct pointer: compare by identity
+    except ReferenceError:
+        return None
+    try:
+        return tuple(v)
+    except TypeError:
+        return v
+
+
+def get_path(root, path: str):
+    owner, attr = resolve(root, path)
+    return _plain(getattr(owner, attr))
+
+
+class SettingsGuard:
+    """Set attributes by path and put every one back on exit, even on exceptions.
+
+    ``guard.set(path, value)`` records the original value the first time a path is touched,
+    then sets. On exit values are restored in the order they were first set, with retries:
+    some enums depend on others (``image_settings.color_depth`` is valid only for the file
+    format it was recorded with), so a restore that fails is retried after the others, until
+    no progress is made. Cleanups registered with ``on_exit`` run after the restore.
+    ``touched`` lists the paths; ``snapshot()`` reads their current values.
+    """
+
+    def __init__(self, root):
+        self.root = root
+        self._orig: dict[str, object] = {}
+        self._order: list[str] = []
+        self._cleanups = []
+        self.errors: list[str] = []
+
+    @property
+    def touched(self) -> list[str]:
+        return list(self._order)
+
+    def set(self, path: str, value):
+        owner, attr = resolve(self.root, path)
+        if path not in self._orig:
+            self._orig[path] = _plain(getattr(owner, attr))
+            self._order.append(path)
+        setattr(owner, attr, value)
+
+    def on_exit(self, fn):
+        self._cleanups.append(fn)
+
+    def snapshot(self, paths=None) -> dict:
+        out = {}
+        for p in (paths if paths is not None else self._order):
+            try:
+                out[p] = get_path(self.root, p)
+            except Exception as e:  # noqa: BLE001
+                out[p] = f"<error {e}>"
+        return out
+
+    def restore(self):
+        pending = list(self._order)
+        last_err = {}
+        while pending:
+            failed = []
+            for p in pending:
+                try:
+                    owner, attr = resolve(self.root, p)
+                    if _plain(getattr(owner, attr)) != self._orig[p]:
+                        setattr(owner, attr, self._orig[p])
+                except Exception as e:  # noqa: BLE001
+                    failed.append(p)
+                    last_err[p] = e
+            if len(failed) == len(pending):
+                self.errors.extend(f"could not restore {p}: {last_err[p]}" for p in failed)
+                break
+            pending = failed
+        for fn in reversed(self._cleanups):
+            try:
+                fn()
+            except Exception as e:  # noqa: BLE001
+                self.errors.append(f"cleanup failed: {e}")
+        self._cleanups.clear()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.restore()
+        return False
+
+
+# ---------------------------------------------------------------- the settings
+def _vl_path(vl) -> str:
+    return f'view_layers["{vl.name}"]'
+
+
+def fair_settings(scene, kind: str, spp: int, seed: int = DEFAULT_SEED,
+                  width: int | None = None, height: int | None = None) -> list[tuple[str, object]]:
+    """The (path relative to the scene, value) pairs applied for a reference, in order."""
+    if kind not in KINDS:
+        raise ValueError(f"unknown reference kind {kind!r}; one of {KINDS}")
+    s = [("render.engine", "CYCLES"),
+         ("cycles.device", "CPU"),
+         ("cycles.samples", int(spp)),
+         ("cycles.use_adaptive_sampling", False),
+         ("cycles.time_limit", 0.0),
+         ("cycles.use_sample_subset", False),
+         ("cycles.use_layer_samples", "IGNORE"),
+         ("cycles.use_denoising", False),
+         ("cycles.pixel_filter_type", "BOX"),
+         ("cycles.filter_width", 1.0),
+         ("cycles.sample_clamp_direct", 0.0),
+         ("cycles.sample_clamp_indirect", 0.0),
+         ("cycles.blur_glossy", 0.0),
+         ("cycles.seed", int(seed)),
+         ("cycles.use_animated_seed", False),
+         ("cycles.use_light_tree", True),
+         ("cycles.caustics_reflective", True),
+         ("cycles.caustics_refractive", True),
+         ("cycles.min_light_bounces", 0),
+         ("cycles.min_transparent_bounces", 0),
+         ("cycles.use_guiding", False),
+         ("cycles.use_fast_gi", False),
+         ("cycles.film_exposure", 1.0),
+         ("cycles.use_camera_cull", False),
+         ("cycles.use_distance_cull", False),
+         ("cycles.texture_limit_render", "OFF")]
+    for k, v in KIND_BOUNCES[kind].items():
+        s.append((f"cycles.{k}", v))
+    for vl in scene.view_layers:
+        s.append((f"{_vl_path(vl)}.cycles.use_denoising", False))
+    s += [("render.film_transparent", kind == "ao"),
+          ("render.use_compositing", False),
+          ("render.use_sequencer", False),
+          ("render.use_border", False),
+          ("render.resolution_percentage", 100),
+          ("render.use_motion_blur", False),
+          ("render.image_settings.media_type", "IMAGE"),
+          ("render.image_settings.file_format", "OPEN_EXR"),
+          ("render.image_settings.color_depth", "32"),
+          ("render.image_settings.color_mode", "RGBA"),
+          ("render.image_settings.exr_codec", "ZIP"),
+          ("render.image_settings.color_management", "FOLLOW_SCENE"),
+          ("view_settings.view_transform", "Standard"),
+          ("view_settings.look", "None"),
+          ("view_settings.exposure", 0.0),
+          ("view_settings.gamma", 1.0),
+          ("view_settings.use_curve_mapping", False),
+          ("view_settings.use_white_balance", False)]
+    if width is not None:
+        s.append(("render.resolution_x", int(width)))
+    if height is not None:
+        s.append(("render.resolution_y", int(height)))
+    return s
+
+
+def _ao_material(distance: float):
+    mat = bpy.data.materials.new("GI Preview AO reference (temporary)")
+    if mat.node_tree is None:  # Blender < 5: node trees are opt-in
+        mat.use_nodes = True
+    nt = mat.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    ao = nt.nodes.new("ShaderNodeAmbientOcclusion")
+    ao.samples = 16
+    ao.only_local = False
+    ao.inside = False
+    ao.inputs["Distance"].default_value = float(distance)
+    ao.inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 1.0
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    out.target = "ALL"
+    nt.links.new(ao.outputs["AO"], em.inputs["Color"])
+    nt.links.new(em.outputs["Emission"], out.inputs["Surface"])
+    return mat
+
+
+# test hook: the one call that renders (monkeypatched in tests to inject failures)
+def _run_render(scene):
+    bpy.ops.render.render(scene=scene.name, use_viewport=False)
+
+
+def render_cycles(scene, spp: int, kind: str = "full", seed: int = DEFAULT_SEED, *,
+                  width: int | None = None, height: int | None = None,
+                  ao_distance: float = DEFAULT_AO_DISTANCE, cancel=None,
+                  guard_log: list | None = None):
+    """Render a Cycles reference of ``scene`` (its camera, frame, resolution unless width/
+    height are given). Returns ``(image float32 (H, W, 4) row 0 bottom, time_ms)``; time_ms
+    is the wall time of the render call (scene sync + BVH + path tracing).
+
+    ``guard_log``: if a list is given, the touched paths are appended (for tests)."""
+    ensure_oiio()
+    if scene.camera is None:
+        raise RuntimeError(f"Scene '{scene.name}' has no camera: a Cycles reference needs one")
+    if cancel is not None and cancel():
+        raise ReferenceCancelled("cancelled before the Cycles render")
+    fd, tmp = tempfile.mkstemp(prefix="gi_preview_ref_", suffix=".exr")
+    os.close(fd)
+    guard = SettingsGuard(scene)
+    try:
+        with guard:
+            for path, value in fair_settings(scene, kind, spp, seed, width, height):
+                guard.set(path, value)
+            if kind == "ao":
+                mat = _ao_material(ao_distance)
+
+                def _remove(m=mat):
+                    bpy.data.materials.remove(m)
+                guard.on_exit(_remove)
+                for vl in scene.view_layers:
+                    guard.set(f"{_vl_path(vl)}.material_override", mat)
+            if guard_log is not None:
+                guard_log.extend(guard.touched)
+            t0 = time.perf_counter()
+            _run_render(scene)
+            time_ms = (time.perf_counter() - t0) * 1000.0
+            rr = bpy.data.images.get("Render Result")
+            if rr is None:
+                raise RuntimeError("Cycles produced no Render Result")
+            rr.save_render(tmp, scene=scene)
+        image = imageio.read_exr(tmp)
+    finally:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+    if guard.errors:
+        raise RuntimeError("settings not fully restored: " + "; ".join(guard.errors))
+    if kind == "ao":
+        a = image[:, :, 3:4]
+        image[:, :, :3] = image[:, :, :3] + (1.0 - a)  # background (and edges) = unoccluded
+        image[:, :, 3] = 1.0
+    if cancel is not None and cancel():
+        raise ReferenceCancelled("cancelled during the Cycles render")
+    return image, time_ms
+
+
+# ---------------------------------------------------------------- cached references
+@dataclass
+class Reference:
+    image: np.ndarray
+    time_ms: float
+    spp: int
+    kind: str
+    seed: int
+    bounces: dict
+    width: int
+    height: int
+    cached: bool
+    key: str
+    fingerprint: str
+    blender_version: str
+    meta: dict = field(default_factory=dict)
+
+    def info(self) -> dict:
+        """JSON-friendly description (no pixels)."""
+        return {"kind": self.kind, "spp": self.spp, "time_ms": self.time_ms, "seed": self.seed,
+                "bounces": dict(self.bounces), "width": self.width, "height": self.height,
+                "cached": self.cached, "key": self.key, "fingerprint": self.fingerprint,
+                "blender_version": self.blender_version, "created": self.meta.get("created"),
+                "ao_distance": self.meta.get("ao_distance")}
+
+
+def default_cache_dir() -> str:
+    """The installed extension's user folder (``references/``), else a user cache folder."""
+    pkg = (__package__ or "").rsplit(".", 1)[0]
+    if pkg.startswith("bl_ext."):
+        try:
+            return _cache.default_cache_dir(bpy.utils.extension_path_user(pkg, create=True))
+        except Exception:  # noqa: BLE001 - fall back to the user cache
+            pass
+    return _cache.default_cache_dir()
+
+
+def _depsgraph(scene):
+    ctx = bpy.context
+    if getattr(ctx, "scene", None) == scene:
+        return ctx.evaluated_depsgraph_get()
+    vl = scene.view_layers[0]
+    dg = vl.depsgraph
+    dg.update()
+    return dg
+
+
+def scene_fingerprint(scene, width: int, height: int, depsgraph=None) -> str:
+    """The exported scene's fingerprint (geometry, materials, lights, camera, world, size)."""
+    from .export import export_scene
+    dg = depsgraph if depsgraph is not None else _depsgraph(scene)
+    return export_scene(dg, width=width, height=height).fingerprint()
+
+
+def resolution(scene) -> tuple[int, int]:
+    r = scene.render
+    return (int(r.resolution_x * r.resolution_percentage / 100),
+            int(r.resolution_y * r.resolution_percentage / 100))
+
+
+def get_reference(scene, kind: str = "full", spp: int = 256, *, seed: int = DEFAULT_SEED,
+                  width: int | None = None, height: int | None = None, depsgraph=None,
+                  fingerprint: str | None = None, cache_dir: str | None = None,
+                  use_cache: bool = True, ao_distance: float = DEFAULT_AO_DISTANCE,
+                  cancel=None) -> Reference:
+    """A Cycles reference from the cache, or rendered (and stored). ``width``/``height``
+    default to the scene's output resolution (percentage applied)."""
+    ensure_oiio()
+    w0, h0 = resolution(scene)
+    width, height = int(width or w0), int(height or h0)
+    fp = fingerprint or scene_fingerprint(scene, width, height, depsgraph)
+    version = ".".join(str(v) for v in bpy.app.version)
+    bounces = dict(KIND_BOUNCES[kind])
+    extra = {"ao_distance": float(ao_distance)} if kind == "ao" else {}
+    key = _cache.reference_key(fp, kind, spp, bounces, (width, height), seed, bpy.app.version, **extra)
+    store = _cache.ReferenceCache(cache_dir or default_cache_dir())
+    if use_cache:
+        hit = store.get(key)
+        if hit is not None and hit[0].shape[:2] == (height, width):
+            image, meta = hit
+            return Reference(image=image, time_ms=float(meta.get("time_ms", 0.0)), spp=int(spp),
+                             kind=kind, seed=seed, bounces=bounces, width=width, height=height,
+                             cached=True, key=key, fingerprint=fp, blender_version=version, meta=meta)
+    image, time_ms = render_cycles(scene, spp, kind, seed, width=width, height=height,
+                                   ao_distance=ao_distance, cancel=cancel)
+    meta = {"spp": int(spp), "time_ms": time_ms, "blender_version": version, "bounces": bounces,
+            "kind": kind, "seed": int(seed), "width": width, "height": height, "fingerprint": fp,
+            "scene": scene.name, "settings": "box filter 1px, no denoise, no clamp, no blur_glossy, "
+            "no adaptive, fixed seed, light tree, CPU", **extra}
+    store.put(key, image, meta)
+    meta["created"] = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+    return Reference(image=image, time_ms=time_ms, spp=int(spp), kind=kind, seed=seed,
+                     bounces=bounces, width=width, height=height, cached=False, key=key,
+                     fingerprint=fp, blender_version=version, meta=meta)
+
+
+def cycles_curve(scene, spp_list, reference: Reference, *, kind: str | None = None,
+                 seed: int = DEFAULT_SEED + 1, metrics_fn=None, progress=None, cancel=None) -> list[dict]:
+    """Cycles at each spp in ``spp_list`` (never cached: the times are the point), measured
+    against ``reference``. A seed different from the reference's keeps the noise independent.
+    Returns [{"spp", "time_ms", "relmse", "flip", "ssim"}], plus "image" (for callers)."""
+    from ..compare import metrics as M
+    metrics_fn = metrics_fn or (lambda t, r: M.compare(t, r))
+    out = []
+    for i, spp in enumerate(spp_list):
+        if cancel is not None and cancel():
+            raise ReferenceCancelled("cancelled during the Cycles curve")
+        img, ms = render_cycles(scene, int(spp), kind or reference.kind, seed,
+                                width=reference.width, height=reference.height, cancel=cancel)
+        m = metrics_fn(img, reference.image)
+        out.append({"spp": int(spp), "time_ms": ms, "relmse": m["relmse"], "flip": m.get("flip"),
+                    "ssim": m.get("ssim"), "image": img})
+        if progress is not None:
+            progress(i + 1, len(spp_list), spp, ms)
+    return out
