@@ -240,7 +240,7 @@ def _sunlit_room(b: _Builder):
     b.sphere("ball", 0.35, make_principled(b.n("ball"), (0.8, 0.8, 0.8), 0.2), (0.4, -0.8, 0.35))
     # sun from +x, 35 degrees above the horizon, shining in through the window
     b.light("sun", "SUN", (4, 0, 4), rotation=(0, math.radians(55), math.radians(10)),
-            energy=5.0, angle=math.radians(0.53), color=(1.0, 0.95, 0.85))
+            energy=8.0, angle=math.radians(0.53), color=(1.0, 0.95, 0.85))
     b.camera((-1.8, -1.7, 1.4), (0.5, 0.3, 0.8), lens=18.0)
     b.scene.world = make_world(b.n("sky"), (0.3, 0.45, 0.8), 0.2)
 
