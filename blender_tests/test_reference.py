@@ -57,7 +57,7 @@ def scene():
     # non-default user settings the reference must not disturb
     sc.render.engine = "BLENDER_EEVEE"
     sc.render.image_settings.file_format = "PNG"
-    sc.render.image_settings.color_depth = "16"
+    sc.render.image_settings.color_depth = "8"  # EXR has no 8: must be recorded before the switch
     sc.render.film_transparent = True
     sc.view_settings.exposure = 0.5
     sc["test_red_material"] = red.name

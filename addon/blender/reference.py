@@ -182,11 +182,18 @@ class SettingsGuard:
     def touched(self) -> list[str]:
         return list(self._order)
 
-    def set(self, path: str, value):
-        owner, attr = resolve(self.root, path)
+    def record(self, path: str):
+        """Remember a path's current value (once) without changing it. Record every path
+        before setting any when settings interact (setting ``file_format`` silently changes
+        ``color_depth``: recording it afterwards would save the wrong original)."""
         if path not in self._orig:
+            owner, attr = resolve(self.root, path)
             self._orig[path] = _plain(getattr(owner, attr))
             self._order.append(path)
+
+    def set(self, path: str, value):
+        self.record(path)
+        owner, attr = resolve(self.root, path)
         setattr(owner, attr, value)
 
     def on_exit(self, fn):
@@ -344,7 +351,12 @@ def render_cycles(scene, spp: int, kind: str = "full", seed: int = DEFAULT_SEED,
     guard = SettingsGuard(scene)
     try:
         with guard:
-            for path, value in fair_settings(scene, kind, spp, seed, width, height):
+            settings = fair_settings(scene, kind, spp, seed, width, height)
+            for path, _ in settings:
+                guard.record(path)
+            for vl in scene.view_layers:
+                guard.record(f"{_vl_path(vl)}.material_override")
+            for path, value in settings:
                 guard.set(path, value)
             if kind == "ao":
                 mat = _ao_material(ao_distance)
@@ -417,20 +429,20 @@ def default_cache_dir() -> str:
     return _cache.default_cache_dir()
 
 
-def _depsgraph(scene):
+def evaluated_depsgraph(scene, view_layer=None):
+    """An evaluated depsgraph of ``scene`` (need not be the context scene)."""
     ctx = bpy.context
-    if getattr(ctx, "scene", None) == scene:
+    vl = view_layer or (ctx.view_layer if getattr(ctx, "scene", None) == scene else scene.view_layers[0])
+    if getattr(ctx, "scene", None) == scene and ctx.view_layer == vl:
         return ctx.evaluated_depsgraph_get()
-    vl = scene.view_layers[0]
-    dg = vl.depsgraph
-    dg.update()
-    return dg
+    with ctx.temp_override(scene=scene, view_layer=vl):
+        return bpy.context.evaluated_depsgraph_get()
 
 
 def scene_fingerprint(scene, width: int, height: int, depsgraph=None) -> str:
     """The exported scene's fingerprint (geometry, materials, lights, camera, world, size)."""
     from .export import export_scene
-    dg = depsgraph if depsgraph is not None else _depsgraph(scene)
+    dg = depsgraph if depsgraph is not None else evaluated_depsgraph(scene)
     return export_scene(dg, width=width, height=height).fingerprint()
 
 

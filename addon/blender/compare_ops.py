@@ -1,0 +1,333 @@
+"""Compare with Cycles from the UI: operator, stored metrics, panel helper.
+
+``GIPREVIEW_OT_compare`` ("gi_preview.compare") renders the current scene with GI Preview
+(technique, quality and samples from ``scene.gi_preview``) and with Cycles (a cached, fair
+reference, see ``reference.py``), measures the difference and shows it as images:
+
+* "GI Preview: result"        the GI Preview frame (linear float)
+* "GI Preview: Cycles"        the Cycles reference (linear float)
+* "GI Preview: error"         per-pixel relMSE heat map (viridis, log scale 1e-4..1, magenta =
+                              non-finite); display-encoded bytes marked Non-Color so no view
+                              transform changes its colours
+* "GI Preview: side by side"  left half GI Preview, right half Cycles, a 1-px white seam
+
+Why images and not the Render Result's slots 1-3: ``bpy.types.RenderSlots`` exposes only
+``active``/``active_index``/``new()`` and a ``RenderSlot`` only ``name``/``clear()``; a slot's
+pixels cannot be written from Python, and ``Image.pixels`` of the Render Result is empty
+(BLENDER_NOTES.md). Writing into slots would mean re-running each render through the engine
+into a chosen slot, which would also re-render Cycles at every compare. Plain images are
+inspectable in any Image Editor, persist with the file if the user wants, and are replaced
+(not duplicated) by the next compare.
+
+The metrics of the last compare per technique are kept on the scene as JSON in
+``scene.gi_preview_comparison.results_json`` (PropertyGroup ``GIPreviewComparison``, attached
+by ``register_props()``), and ``draw_comparison(layout, scene)`` draws them as a table.
+
+Long renders: the operator runs as a modal operator when invoked from the UI; each step
+(export + GI Preview render, Cycles reference, metrics and images) runs in its own timer
+event, ``wm.progress_begin/update/end`` shows progress and ESC cancels between steps (a
+Cycles render itself is one blocking call). ``execute`` (scripts, F3 redo, background) runs
+the same steps in one go.
+"""
+from __future__ import annotations
+
+import json
+import time
+
+import numpy as np
+
+import bpy
+
+from ..compare import metrics as M
+
+IMG_RESULT = "GI Preview: result"
+IMG_CYCLES = "GI Preview: Cycles"
+IMG_ERROR = "GI Preview: error"
+IMG_SPLIT = "GI Preview: side by side"
+
+_REF_ITEMS = [
+    ("AUTO", "Auto", "The reference the technique models (e.g. one bounce for one-bounce GI)"),
+    ("FULL", "Full", "Cycles with 12 bounces: the ground truth"),
+    ("DIRECT", "Direct", "Cycles with 0 bounces: direct light only"),
+    ("ONE_BOUNCE", "One Bounce", "Cycles with one indirect bounce of any kind"),
+    ("AO", "AO", "Cycles ambient occlusion"),
+]
+
+
+class GIPreviewComparison(bpy.types.PropertyGroup):
+    """The last comparison with Cycles per technique (JSON, written by gi_preview.compare)."""
+
+    results_json: bpy.props.StringProperty(
+        name="Comparison Results", default="{}", options={"HIDDEN"},
+        description="JSON: technique -> metrics of its last comparison with Cycles")
+    last_technique: bpy.props.StringProperty(name="Last Technique", default="")
+
+
+def _set_image(name: str, rgba: np.ndarray, *, linear: bool = True) -> bpy.types.Image:
+    """Create or replace the image ``name`` with (H, W, 4) pixels (row 0 = bottom)."""
+    h, w = rgba.shape[:2]
+    img = bpy.data.images.get(name)
+    if img is not None and (tuple(img.size) != (w, h) or bool(img.is_float) != linear):
+        bpy.data.images.remove(img)
+        img = None
+    if img is None:
+        img = bpy.data.images.new(name, width=w, height=h, alpha=True, float_buffer=linear)
+    try:
+        img.colorspace_settings.name = "Linear Rec.709" if linear else "Non-Color"
+    except TypeError:
+        pass
+    px = np.ascontiguousarray(np.nan_to_num(rgba, nan=0.0, posinf=65504.0, neginf=0.0), np.float32)
+    img.pixels.foreach_set(px.ravel())
+    img.update()
+    return img
+
+
+def side_by_side(ours: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """Left half from ``ours``, right half from ``ref``, a white seam at the split."""
+    out = np.array(ref, np.float32, copy=True)
+    w = out.shape[1]
+    half = w // 2
+    out[:, :half] = ours[:, :half]
+    out[:, half:half + 1, :3] = 1.0
+    out[..., 3] = 1.0
+    return out
+
+
+def load_results(scene) -> dict:
+    comp = getattr(scene, "gi_preview_comparison", None)
+    if comp is None:
+        return {}
+    try:
+        d = json.loads(comp.results_json or "{}")
+        return d if isinstance(d, dict) else {}
+    except ValueError:
+        return {}
+
+
+def store_results(scene, technique: str, entry: dict):
+    comp = getattr(scene, "gi_preview_comparison", None)
+    if comp is None:
+        return
+    d = load_results(scene)
+    d[technique] = entry
+    comp.results_json = json.dumps(d, sort_keys=True)
+    comp.last_technique = technique
+
+
+def _settings(scene):
+    gp = getattr(scene, "gi_preview", None)
+    tech = getattr(gp, "technique", "DIRECT") if gp is not None else "DIRECT"
+    samples = int(getattr(gp, "samples", 1)) if gp is not None else 1
+    quality = int(getattr(gp, "quality", 1)) if gp is not None else 1
+    return str(tech), quality, samples
+
+
+def _reference_kind(technique: str, choice: str) -> str:
+    if choice != "AUTO":
+        return choice.lower()
+    try:
+        from ..render import session
+        for t in session.available_techniques():
+            if t.id == technique:
+                return t.reference or "full"
+    except Exception:  # noqa: BLE001 - unknown technique: compare with the full reference
+        pass
+    return "full"
+
+
+class GIPREVIEW_OT_compare(bpy.types.Operator):
+    """Render the scene with GI Preview and with Cycles (cached reference), and show the error map, a side-by-side image and the metrics"""
+
+    bl_idname = "gi_preview.compare"
+    bl_label = "Compare with Cycles"
+    bl_options = {"REGISTER"}
+
+    reference: bpy.props.EnumProperty(name="Reference", items=_REF_ITEMS, default="AUTO")
+    ref_spp: bpy.props.IntProperty(name="Reference Samples", default=128, min=1, max=65536,
+                                   description="Cycles samples of the reference")
+    use_cache: bpy.props.BoolProperty(name="Use Cache", default=True,
+                                      description="Reuse a stored reference of the unchanged scene")
+
+    _timer = None
+    _steps = None
+    _state = None
+
+    @classmethod
+    def poll(cls, context):
+        sc = getattr(context, "scene", None)
+        if sc is None or sc.camera is None:
+            cls.poll_message_set("The scene needs a camera")
+            return False
+        return True
+
+    # ---------------------------------------------------------------- steps
+    def _make_steps(self, context):
+        scene = context.scene
+        st = self._state = {"scene": scene}
+        tech, quality, samples = _settings(scene)
+        st.update(technique=tech, quality=quality, samples=samples,
+                  kind=_reference_kind(tech, self.reference))
+
+        def render_ours():
+            from . import reference as R
+            from .export import export_scene
+            from ..render import session
+            dg = R.evaluated_depsgraph(scene, context.view_layer)
+            sd = export_scene(dg)
+            st["fingerprint"] = sd.fingerprint()
+            st["size"] = (sd.width, sd.height)
+            res = session.render(sd, technique=tech, quality=quality, samples=samples)
+            st["ours"] = res
+
+        def render_ref():
+            from . import reference as R
+            w, h = st["size"]
+            st["ref"] = R.get_reference(scene, st["kind"], self.ref_spp, width=w, height=h,
+                                        fingerprint=st["fingerprint"], use_cache=self.use_cache)
+
+        def measure():
+            res, ref = st["ours"], st["ref"]
+            img = np.asarray(res.image, np.float32)
+            m = M.compare(img, ref.image)
+            heat, legend = M.heatmap(img, ref.image)
+            _set_image(IMG_RESULT, img)
+            _set_image(IMG_CYCLES, ref.image)
+            heat4 = np.concatenate([heat, np.ones(heat.shape[:2] + (1,), np.float32)], axis=2)
+            _set_image(IMG_ERROR, heat4, linear=False)
+            _set_image(IMG_SPLIT, side_by_side(img, ref.image))
+            entry = {"technique": tech, "quality": quality, "samples": samples,
+                     "reference": st["kind"], "ref_spp": ref.spp, "ref_time_ms": ref.time_ms,
+                     "ref_cached": ref.cached, "ms_per_frame": float(res.frame_ms),
+                     "total_ms": float(res.total_ms), "relmse": m["relmse"], "flip": m["flip"],
+                     "ssim": m["ssim"], "psnr": m["psnr"] if np.isfinite(m["psnr"]) else None,
+                     "nonfinite_pixels": m["nonfinite_pixels"],
+                     "skipped_passes": [s.as_dict() for s in res.skipped_passes],
+                     "heatmap_range": [legend["vmin"], legend["vmax"]],
+                     "time": time.strftime("%Y-%m-%d %H:%M:%S")}
+            store_results(scene, tech, entry)
+            st["entry"] = entry
+
+        return [("Rendering GI Preview", render_ours), ("Rendering Cycles reference", render_ref),
+                ("Measuring", measure)]
+
+    def _report_done(self):
+        e = self._state["entry"]
+        self.report({"INFO"}, f"{e['technique']} q{e['quality']} vs Cycles {e['reference']} "
+                              f"({e['ref_spp']} spp{', cached' if e['ref_cached'] else ''}): "
+                              f"relMSE {e['relmse']:.4g}, FLIP {e['flip']:.4g}, SSIM {e['ssim']:.4f}, "
+                              f"{e['ms_per_frame']:.1f} ms/frame. Images: '{IMG_SPLIT}', '{IMG_ERROR}'")
+
+    # ---------------------------------------------------------------- blocking
+    def execute(self, context):
+        steps = self._make_steps(context)
+        wm = context.window_manager
+        wm.progress_begin(0, len(steps))
+        try:
+            for i, (_label, fn) in enumerate(steps):
+                fn()
+                wm.progress_update(i + 1)
+        except Exception as e:  # noqa: BLE001 - shown to the user
+            self.report({"ERROR"}, f"Compare with Cycles failed: {e}")
+            return {"CANCELLED"}
+        finally:
+            wm.progress_end()
+        self._report_done()
+        return {"FINISHED"}
+
+    # ---------------------------------------------------------------- modal (UI)
+    def invoke(self, context, event):
+        if context.window is None:
+            return self.execute(context)
+        self._steps = self._make_steps(context)
+        self._i = 0
+        wm = context.window_manager
+        wm.progress_begin(0, len(self._steps))
+        self._timer = wm.event_timer_add(0.05, window=context.window)
+        wm.modal_handler_add(self)
+        context.workspace.status_text_set(f"GI Preview compare: {self._steps[0][0]}... (Esc to cancel)")
+        return {"RUNNING_MODAL"}
+
+    def _finish(self, context):
+        wm = context.window_manager
+        if self._timer is not None:
+            wm.event_timer_remove(self._timer)
+            self._timer = None
+        wm.progress_end()
+        context.workspace.status_text_set(None)
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self._finish(context)
+            self.report({"WARNING"}, "Compare with Cycles cancelled")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"PASS_THROUGH"}
+        label, fn = self._steps[self._i]
+        try:
+            fn()
+        except Exception as e:  # noqa: BLE001
+            self._finish(context)
+            self.report({"ERROR"}, f"Compare with Cycles failed ({label}): {e}")
+            return {"CANCELLED"}
+        self._i += 1
+        context.window_manager.progress_update(self._i)
+        if self._i < len(self._steps):
+            context.workspace.status_text_set(
+                f"GI Preview compare: {self._steps[self._i][0]}... (Esc to cancel)")
+            return {"RUNNING_MODAL"}
+        self._finish(context)
+        self._report_done()
+        for area in getattr(context.screen, "areas", []):
+            area.tag_redraw()
+        return {"FINISHED"}
+
+
+def _fmt(v, f="{:.4g}"):
+    if v is None:
+        return "-"
+    try:
+        return f.format(v)
+    except (TypeError, ValueError):
+        return str(v)
+
+
+def draw_comparison(layout, scene):
+    """The metrics table (technique, relMSE, FLIP, SSIM, ms/frame) and the compare button."""
+    col = layout.column(align=True)
+    col.operator(GIPREVIEW_OT_compare.bl_idname, icon="IMAGE_REFERENCE")
+    res = load_results(scene)
+    if not res:
+        col.label(text="No comparison yet", icon="INFO")
+        return
+    box = layout.box()
+    head = box.row()
+    for title in ("Technique", "relMSE", "FLIP", "SSIM", "ms/frame"):
+        head.label(text=title)
+    for tech in sorted(res):
+        e = res[tech]
+        row = box.row()
+        row.label(text=f"{tech} q{e.get('quality', '')}")
+        row.label(text=_fmt(e.get("relmse")))
+        row.label(text=_fmt(e.get("flip")))
+        row.label(text=_fmt(e.get("ssim"), "{:.3f}"))
+        row.label(text=_fmt(e.get("ms_per_frame"), "{:.1f}"))
+    last = res.get(getattr(scene.gi_preview_comparison, "last_technique", ""), None) \
+        if hasattr(scene, "gi_preview_comparison") else None
+    if last:
+        box.label(text=f"Reference: Cycles {last.get('reference')} {last.get('ref_spp')} spp, "
+                       f"{_fmt(last.get('ref_time_ms'), '{:.0f}')} ms", icon="RENDER_STILL")
+        if last.get("nonfinite_pixels"):
+            box.label(text=f"{last['nonfinite_pixels']} non-finite pixels", icon="ERROR")
+
+
+classes = (GIPreviewComparison, GIPREVIEW_OT_compare)
+
+
+def register_props():
+    """Attach ``Scene.gi_preview_comparison`` (call after registering ``classes``)."""
+    bpy.types.Scene.gi_preview_comparison = bpy.props.PointerProperty(type=GIPreviewComparison)
+
+
+def unregister_props():
+    if hasattr(bpy.types.Scene, "gi_preview_comparison"):
+        del bpy.types.Scene.gi_preview_comparison

@@ -1,0 +1,353 @@
+#!/usr/bin/env python3
+"""Batch comparison of GI Preview techniques with Cycles.
+
+Runs as
+    blender -b scene.blend -P scripts/gi_compare.py -- [SCENE] ARGS
+    python scripts/gi_compare.py SCENE ARGS            (with the PyPI ``bpy`` module)
+where SCENE is a .blend path or a built-in demo scene name (cornell, glossy_spheres,
+sunlit_room, emissive_panel, many_lights). Under ``blender -b file.blend`` SCENE may be left
+out: the file's current scene is used.
+
+ARGS
+  --techniques A,B      technique ids (default: all available)
+  --quality LEVELS      e.g. 0,1,2 or all (default: all levels of each technique)
+  --res N               width in pixels (height keeps the scene's aspect; demo scenes are square)
+  --ref-spp N           Cycles reference samples (default 256)
+  --frames N            renders per technique and quality for timing (time = median; default 3)
+  --samples N           accumulation samples for techniques that converge (default 1)
+  --cycles-curve LIST   Cycles spp list for its own error/time curve (default 1,2,4,...,ref-spp/4)
+  --reference KIND      full | direct | one_bounce | ao | auto (default auto: each technique
+                        against the reference it models, and also against full)
+  --seed N              reference seed (default 0)
+  --out DIR             output folder (default ./gi_compare_out)
+  --cache DIR           reference cache folder (default: the user cache)
+  --no-cache            always re-render the references
+  --use-installed       use the installed extension even when run from a checkout
+
+Writes into DIR: per technique and quality ``<TECH>_q<Q>.exr`` (linear), ``.png`` (sRGB
+"Standard" view), ``<TECH>_q<Q>_vs_<kind>_error.png`` (relMSE heat map); ``reference_<kind>``
+EXR/PNG; ``results.json``; ``chart.svg`` (+ ``chart.png`` when matplotlib is importable,
+one per extra reference kind as ``chart_<kind>``); ``report.html`` (self-contained).
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import importlib
+import json
+import math
+import os
+import statistics
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+DEMOS = ("cornell", "glossy_spheres", "sunlit_room", "emissive_panel", "many_lights")
+REF_KINDS = ("full", "direct", "one_bounce", "ao")
+
+
+def log(msg: str):
+    print(f"[gi_compare {time.strftime('%H:%M:%S')}] {msg}", flush=True)
+
+
+# ---------------------------------------------------------------- arguments
+def _script_argv() -> tuple[list[str], bool]:
+    """(our arguments, running inside the Blender binary?)."""
+    argv = sys.argv
+    in_blender = False
+    try:
+        import bpy
+        in_blender = bool(bpy.app.binary_path) and os.path.basename(argv[0]) != os.path.basename(__file__)
+    except ImportError:
+        pass
+    if "--" in argv:
+        return argv[argv.index("--") + 1:], in_blender
+    if in_blender:
+        return [], True
+    return argv[1:], False
+
+
+def parse_args(argv: list[str], scene_optional: bool):
+    p = argparse.ArgumentParser(prog="gi_compare.py", description=__doc__.split("\n\n")[0],
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("scene", nargs="?" if scene_optional else None,
+                   help=".blend path or demo scene name (" + ", ".join(DEMOS) + ")")
+    p.add_argument("--techniques", default="")
+    p.add_argument("--quality", default="all")
+    p.add_argument("--res", type=int, default=None)
+    p.add_argument("--ref-spp", type=int, default=256)
+    p.add_argument("--frames", type=int, default=3)
+    p.add_argument("--samples", type=int, default=1)
+    p.add_argument("--cycles-curve", default="")
+    p.add_argument("--reference", default="auto", choices=REF_KINDS + ("auto",))
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default="gi_compare_out")
+    p.add_argument("--cache", default=None)
+    p.add_argument("--no-cache", action="store_true")
+    p.add_argument("--use-installed", action="store_true")
+    a = p.parse_args(argv)
+    if a.ref_spp < 1 or a.frames < 1 or a.samples < 1:
+        p.error("--ref-spp, --frames and --samples must be >= 1")
+    if a.cycles_curve:
+        a.curve = sorted({int(x) for x in a.cycles_curve.split(",") if x.strip()})
+    else:
+        a.curve, s = [], 1
+        while s <= max(1, a.ref_spp // 4):
+            a.curve.append(s)
+            s *= 2
+    return a
+
+
+# ---------------------------------------------------------------- finding the add-on
+def find_addon(use_installed: bool):
+    """The gi_preview package: the checkout's ``addon/`` (via a symlink package in a temp
+    dir) when run from a checkout, else the installed extension (``bl_ext.*.gi_preview``)."""
+    checkout = os.path.join(REPO, "addon")
+    if not use_installed and os.path.isdir(os.path.join(checkout, "compare")):
+        if "gi_preview" in sys.modules:
+            return sys.modules["gi_preview"]
+        d = tempfile.mkdtemp(prefix="gi_compare_pkg_")
+        os.symlink(checkout, os.path.join(d, "gi_preview"), target_is_directory=True)
+        sys.path.insert(0, d)
+        return importlib.import_module("gi_preview")
+    import bpy
+    for name in bpy.context.preferences.addons.keys():
+        if name.endswith(".gi_preview") or name == "gi_preview":
+            return importlib.import_module(name)
+    import addon_utils
+    for mod in addon_utils.modules():
+        if mod.__name__.endswith(".gi_preview"):
+            addon_utils.enable(mod.__name__, default_set=False)
+            return importlib.import_module(mod.__name__)
+    raise SystemExit("gi_compare: GI Preview not found: run from a checkout or install the extension")
+
+
+# ---------------------------------------------------------------- helpers
+def _finite(v):
+    if isinstance(v, float) and not math.isfinite(v):
+        return None if v != v else (1e308 if v > 0 else -1e308)
+    return v
+
+
+def _clean_json(o):
+    if isinstance(o, dict):
+        return {str(k): _clean_json(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_clean_json(v) for v in o]
+    if isinstance(o, float):
+        return _finite(o)
+    if hasattr(o, "item") and not isinstance(o, (str, bytes)):
+        try:
+            return _clean_json(o.item())
+        except (ValueError, TypeError):
+            pass
+    return o
+
+
+def _load_scene(bpy, name_or_path: str | None, demo_scenes):
+    if name_or_path is None:
+        return bpy.context.scene
+    if name_or_path.lower().endswith(".blend"):
+        if not os.path.exists(name_or_path):
+            raise SystemExit(f"gi_compare: no such file {name_or_path}")
+        bpy.ops.wm.open_mainfile(filepath=os.path.abspath(name_or_path))
+        return bpy.context.scene
+    if name_or_path in DEMOS or demo_scenes is not None:
+        return demo_scenes.build_demo(name_or_path)
+    raise SystemExit(f"gi_compare: {name_or_path!r} is neither a .blend nor a demo scene ({', '.join(DEMOS)})")
+
+
+def _resolution(scene, res):
+    r = scene.render
+    w = int(r.resolution_x * r.resolution_percentage / 100)
+    h = int(r.resolution_y * r.resolution_percentage / 100)
+    if res:
+        h = max(4, int(round(res * h / max(1, w))))
+        w = int(res)
+    return w, h
+
+
+# ---------------------------------------------------------------- the run
+def run(opts, *, pkg=None, session=None, scene=None) -> dict:
+    import bpy
+    import numpy as np
+
+    pkg = pkg or find_addon(opts.use_installed)
+    pn = pkg.__name__
+    reference = importlib.import_module(pn + ".blender.reference")
+    export = importlib.import_module(pn + ".blender.export")
+    metrics = importlib.import_module(pn + ".compare.metrics")
+    sweep = importlib.import_module(pn + ".compare.sweep")
+    report = importlib.import_module(pn + ".compare.report")
+    imageio = importlib.import_module(pn + ".compare.imageio")
+    reference.ensure_oiio()
+    if session is None:
+        session = importlib.import_module(pn + ".render.session")
+    if scene is None:
+        demo = None
+        if opts.scene and not opts.scene.lower().endswith(".blend"):
+            demo = importlib.import_module(pn + ".blender.demo_scenes")
+        scene = _load_scene(bpy, opts.scene, demo)
+    out = os.path.abspath(opts.out)
+    os.makedirs(out, exist_ok=True)
+    w, h = _resolution(scene, opts.res)
+    log(f"scene '{scene.name}' at {w}x{h}, output {out}")
+
+    # ---- techniques and quality levels
+    infos = {t.id: t for t in session.available_techniques()}
+    wanted = [t.strip() for t in opts.techniques.split(",") if t.strip()] or list(infos)
+    unknown = [t for t in wanted if t not in infos]
+    if unknown:
+        raise SystemExit(f"gi_compare: unknown technique(s) {', '.join(unknown)}; available: {', '.join(infos)}")
+    plan = []
+    for t in wanted:
+        levels = list(infos[t].quality_levels)
+        if opts.quality != "all":
+            req = [int(q) for q in opts.quality.split(",") if q.strip()]
+            missing = [q for q in req if q not in levels]
+            if missing:
+                log(f"{t}: quality level(s) {missing} not in its ladder {levels}; skipped")
+            levels = [q for q in req if q in levels]
+        plan += [(t, q) for q in levels]
+    if not plan:
+        raise SystemExit("gi_compare: nothing to render (check --techniques/--quality)")
+
+    # ---- export once (the fingerprint keys the reference cache)
+    dg = reference.evaluated_depsgraph(scene)
+    sd = export.export_scene(dg, width=w, height=h)
+    fp = sd.fingerprint()
+
+    # ---- which references
+    def kinds_for(tech):
+        if opts.reference != "auto":
+            return [opts.reference]
+        k = getattr(infos[tech], "reference", "full") or "full"
+        return [k] if k == "full" else [k, "full"]
+    kinds = []
+    for t, _ in plan:
+        for k in kinds_for(t):
+            if k not in kinds:
+                kinds.append(k)
+    primary = "full" if "full" in kinds else kinds[0]
+
+    refs, curves = {}, {}
+    cache_dir = opts.cache
+    for k in kinds:
+        log(f"Cycles reference '{k}' at {opts.ref_spp} spp ...")
+        r = reference.get_reference(scene, k, opts.ref_spp, seed=opts.seed, width=w, height=h,
+                                    fingerprint=fp, cache_dir=cache_dir, use_cache=not opts.no_cache)
+        refs[k] = r
+        log(f"  {'from cache' if r.cached else 'rendered'}: {r.time_ms:.0f} ms")
+        imageio.write_exr(os.path.join(out, f"reference_{k}.exr"), r.image)
+        imageio.write_png(os.path.join(out, f"reference_{k}.png"), metrics.view_standard(r.image))
+        log(f"Cycles curve '{k}' at {opts.curve} spp ...")
+        cur = reference.cycles_curve(
+            scene, opts.curve, r, seed=opts.seed + 1,
+            progress=lambda i, n, spp, ms: log(f"  {spp:>5} spp: {ms:8.0f} ms ({i}/{n})"))
+        curves[k] = [{"spp": c["spp"], "time_ms": c["time_ms"], "relmse": c["relmse"], "flip": c["flip"],
+                      "ssim": c["ssim"]} for c in cur]
+
+    # ---- techniques
+    entries, images = [], {}
+    for i, (tech, q) in enumerate(plan):
+        log(f"[{i + 1}/{len(plan)}] {tech} q{q}: {opts.frames} render(s) of {opts.samples} sample(s) ...")
+        results = []
+        for _ in range(opts.frames):
+            results.append(session.render(sd, technique=tech, quality=q, samples=opts.samples))
+        res = results[-1]
+        frame_ms = statistics.median(float(r.frame_ms) for r in results)
+        total_ms = statistics.median(float(r.total_ms) for r in results)
+        time_ms = frame_ms * max(1, int(getattr(res, "samples", opts.samples) or 1))
+        img = np.asarray(res.image, np.float32)
+        base = f"{tech}_q{q}"
+        imageio.write_exr(os.path.join(out, base + ".exr"), img)
+        imageio.write_png(os.path.join(out, base + ".png"), metrics.view_standard(img))
+        ours_png = imageio.png_bytes(metrics.view_standard(img))
+        for k in kinds_for(tech):
+            ref = refs[k]
+            m = metrics.compare(img, ref.image)
+            heat, legend = metrics.heatmap(img, ref.image)
+            epath = os.path.join(out, f"{base}_vs_{k}_error.png")
+            imageio.write_png(epath, heat)
+            sp = sweep.equal_error_speedup(m["relmse"], time_ms, [(c["spp"], c["time_ms"], c["relmse"])
+                                                                   for c in curves[k]])
+            e = {"technique": tech, "quality": q, "reference": k, "time_ms": time_ms,
+                 "frame_ms": frame_ms, "total_ms": total_ms, "samples": int(getattr(res, "samples", 1)),
+                 "relmse": m["relmse"], "flip": m["flip"], "flip_ldr": m["flip_ldr"], "ssim": m["ssim"],
+                 "psnr": m["psnr"], "nonfinite_pixels": m["nonfinite_pixels"],
+                 "effects": list(getattr(res, "effects", []) or []),
+                 "skipped_passes": [s.as_dict() if hasattr(s, "as_dict") else dict(s)
+                                    for s in (getattr(res, "skipped_passes", []) or [])],
+                 "effect_errors": m.get("effects", {}),
+                 "warnings": list(getattr(res, "warnings", []) or []),
+                 "speedup": sp,
+                 "files": {"exr": base + ".exr", "png": base + ".png", "error_png": os.path.basename(epath)}}
+            entries.append(e)
+            images[report.entry_id(tech, q, k)] = {"ours": ours_png,
+                                                   "cycles": imageio.png_bytes(metrics.view_standard(ref.image)),
+                                                   "error": imageio.png_bytes(heat)}
+            sps = f"{sp['speedup']:.3g}x" if sp["speedup"] is not None else "n/a"
+            log(f"  vs {k}: {time_ms:.2f} ms  relMSE {m['relmse']:.4g}  FLIP {m['flip']:.4g}  "
+                f"SSIM {m['ssim']:.4f}  speed-up {sps}")
+
+    # ---- chart(s)
+    charts = {}
+    for k in kinds:
+        pts = [{"technique": e["technique"], "quality": e["quality"], "time_ms": e["time_ms"],
+                "error": e["relmse"]} for e in entries if e["reference"] == k]
+        base = os.path.join(out, "chart" if k == primary else f"chart_{k}")
+        c = sweep.write_chart(pts, [(c["spp"], c["time_ms"], c["relmse"]) for c in curves[k]], base,
+                              metric="relMSE", title=f"{scene.name}: cost vs accuracy against Cycles '{k}' "
+                                                     f"({opts.ref_spp} spp)")
+        charts[k] = c
+        if c["png"] is None and k == primary:
+            log("matplotlib is not importable: chart written as SVG only")
+
+    import bpy as _b
+    results = {
+        "scene": scene.name, "resolution": [w, h], "fingerprint": fp,
+        "run": {"date": datetime.datetime.now().isoformat(timespec="seconds"),
+                "blender": _b.app.version_string, "frames": opts.frames, "samples": opts.samples,
+                "ref_spp": opts.ref_spp, "reference_mode": opts.reference, "resolution": f"{w}x{h}"},
+        "reference": {**refs[primary].info()},
+        "references": {k: r.info() for k, r in refs.items()},
+        "reference_settings": reference.__doc__.split("Fair settings")[1].split("\n\n")[0].strip(" :\n")
+        .replace("\n", " ") if "Fair settings" in (reference.__doc__ or "") else "",
+        "cycles_curve": curves[primary],
+        "cycles_curves": curves,
+        "entries": entries,
+        "results": entries,
+        "speedup": [{"technique": e["technique"], "quality": e["quality"], "reference": e["reference"],
+                     **e["speedup"]} for e in entries],
+        "charts": {k: {"svg": os.path.basename(c["svg"]), "png": c["png"] and os.path.basename(c["png"])}
+                   for k, c in charts.items()},
+    }
+    results = _clean_json(results)
+    with open(os.path.join(out, "results.json"), "w", encoding="utf-8") as f:
+        json.dump(results, f, indent=1)
+    for k, r in refs.items():
+        images[f"reference:{k}"] = imageio.png_bytes(metrics.view_standard(r.image))
+    chart_html = "\n".join(charts[k]["svg_text"] for k in ([primary] + [k for k in kinds if k != primary]))
+    _, legend = metrics.heatmap(np.zeros((1, 1, 3)), np.zeros((1, 1, 3)))
+    report.write_html(os.path.join(out, "report.html"),
+                      title=f"GI Preview vs Cycles: {scene.name} ({w}x{h})", results=results,
+                      images=images, chart_svg=chart_html,
+                      colorbar_png=imageio.png_bytes(metrics.colorbar(256, 10)), legend=legend)
+    log(f"wrote {os.path.join(out, 'results.json')} and report.html")
+    return results
+
+
+def main():
+    argv, in_blender = _script_argv()
+    opts = parse_args(argv, scene_optional=in_blender)
+    try:
+        import bpy  # noqa: F401
+    except ImportError:
+        raise SystemExit("gi_compare: needs Blender (blender -b -P) or the bpy module (pip install bpy)")
+    run(opts)
+
+
+if __name__ == "__main__":
+    main()
