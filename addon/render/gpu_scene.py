@@ -1,0 +1,403 @@
+"""The scene on the GPU: vertex buffers, material/light/emitter buffers, textures.
+
+Host side of the std430 structs declared in ``shaders/lib/common.glsl`` (keep in step).
+Uploads are incremental: a mesh's vertex buffer is kept while its content hash is the
+same, so moving an object or editing a light re-uploads only small buffers.
+"""
+from __future__ import annotations
+
+import hashlib
+import logging
+
+import numpy as np
+
+from .scene_data import AreaShape, LightType, SceneData, SceneError
+
+log = logging.getLogger(__name__)
+
+# One source of truth for the layouts (floats per record); see common.glsl.
+MATERIAL_FLOATS = 16
+LIGHT_FLOATS = 28
+EMITTER_FLOATS = 16
+LIGHT_MESH = 4
+MAX_TEXTURE_SIZE = 2048
+MAX_EMITTERS = 1 << 16
+# Vertex layout: position 3, normal 3, uv 2, material id 1 (float, exact below 2^24).
+VERTEX_FORMAT = "3f 3f 2f 1f"
+VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_material")
+# A buffer bigger than this is refused with a clear message rather than crashing the driver.
+MAX_VERTEX_BYTES = 2 << 30
+
+
+def set_uniform(prog, name: str, value):
+    """Set a uniform if the program uses it (inactive uniforms are optimised away)."""
+    try:
+        u = prog[name]
+    except KeyError:
+        return
+    if isinstance(value, np.ndarray):
+        if value.ndim == 2:  # numpy row-major -> GLSL column-major
+            u.write(np.ascontiguousarray(value.T, dtype=np.float32).tobytes())
+        else:
+            u.value = tuple(float(x) for x in value)
+    else:
+        u.value = value
+
+
+def _mesh_key(mesh, material_map) -> str:
+    h = hashlib.blake2b(digest_size=16)
+    for arr in (mesh.positions, mesh.normals, mesh.uvs, mesh.material_ids):
+        a = np.ascontiguousarray(arr)
+        h.update(str(a.shape).encode())
+        h.update(a.tobytes())
+    if material_map is not None:
+        h.update(np.ascontiguousarray(material_map, np.int32).tobytes())
+    return h.hexdigest()
+
+
+def pack_materials(scene: SceneData) -> np.ndarray:
+    n = max(1, len(scene.materials))
+    out = np.zeros((n + 1, MATERIAL_FLOATS), np.float32)
+    for i, m in enumerate(scene.materials):
+        out[i, 0:3] = m.base_color
+        out[i, 3] = m.base_color_texture
+        out[i, 4:8] = (m.metallic, m.roughness, m.ior, m.specular_ior_level)
+        out[i, 8:11] = m.emission
+        out[i, 11] = m.alpha
+        out[i, 12:15] = m.specular_tint
+        out[i, 15] = 1.0 if m.exact else 0.0
+    # the default material at the end (for material id -1 and out-of-range ids)
+    out[n, 0:4] = (0.8, 0.8, 0.8, -1)
+    out[n, 4:8] = (0.0, 0.5, 1.5, 0.5)
+    out[n, 12:16] = (1, 1, 1, 1)
+    return out
+
+
+def spot_params(light) -> tuple[float, float]:
+    """Cycles' spot cone: cos of the half angle and the smoothstep scale 1/((1-cos)*blend)."""
+    cos_half = float(np.cos(0.5 * light.spot_size))
+    denom = (1.0 - cos_half) * float(light.spot_blend)
+    smooth = 1.0 / denom if denom > 1e-8 else 1e8
+    return cos_half, smooth
+
+
+def pack_lights(scene: SceneData, emitters: "EmitterSet") -> np.ndarray:
+    """Lights, then one LIGHT_MESH record per emissive instance."""
+    recs = []
+    for idx, L in enumerate(scene.lights):
+        r = np.zeros(LIGHT_FLOATS, np.float32)
+        r[0:3] = L.position
+        r[3] = int(L.type)
+        r[4:7] = L.direction
+        r[8:11] = L.color
+        r[11] = L.power
+        r[27] = 0.0
+        if L.type in (LightType.POINT, LightType.SPOT):
+            r[7] = L.radius
+        if L.type == LightType.SUN:
+            r[7] = 0.5 * L.angle
+        if L.type == LightType.SPOT:
+            m3 = np.asarray(L.matrix, np.float64)[:3, :3]
+            try:
+                inv = np.linalg.inv(m3)
+            except np.linalg.LinAlgError:
+                raise SceneError(f"Light '{L.name}' has a degenerate transform (zero scale)") from None
+            cos_half, smooth = spot_params(L)
+            r[12:15] = inv[0]
+            r[15] = cos_half
+            r[16:19] = inv[1]
+            r[19] = smooth
+            r[20:23] = inv[2]
+        if L.type == LightType.AREA:
+            u, v = L.area_axes()
+            r[12:15] = u
+            r[15] = int(L.shape)
+            r[16:19] = v
+            r[19] = L.area()
+        r[23] = 1.0 if L.cast_shadow else 0.0
+        r[26] = idx
+        recs.append(r)
+    for g in emitters.groups:
+        r = np.zeros(LIGHT_FLOATS, np.float32)
+        r[0:3] = g["center"]
+        r[3] = LIGHT_MESH
+        r[8:11] = g["radiance_max"]
+        r[11] = g["power"]
+        r[20] = g["first"]
+        r[21] = g["count"]
+        r[23] = 1.0
+        r[26] = len(recs)
+        recs.append(r)
+    if not recs:
+        return np.zeros((1, LIGHT_FLOATS), np.float32)
+    return np.stack(recs)
+
+
+class EmitterSet:
+    """Emissive triangles in world space, grouped per instance (one mesh light each)."""
+
+    def __init__(self, scene: SceneData):
+        emissive = np.array([m.is_emissive for m in scene.materials] + [False], bool)
+        radiance = np.array([m.emission for m in scene.materials] + [np.zeros(3)], np.float32).reshape(-1, 3)
+        rows, groups = [], []
+        total = 0
+        self.truncated = False
+        for ii, inst in enumerate(scene.instances):
+            mesh = scene.meshes[inst.mesh]
+            mids = mesh.material_ids
+            if inst.material_map is not None and mids.size:
+                mids = np.asarray(inst.material_map)[np.clip(mids, 0, len(inst.material_map) - 1)]
+            mids = np.where((mids < 0) | (mids >= len(scene.materials)), len(scene.materials), mids)
+            sel = np.nonzero(emissive[mids])[0]
+            if sel.size == 0:
+                continue
+            if total + sel.size > MAX_EMITTERS:
+                self.truncated = True
+                sel = sel[: max(0, MAX_EMITTERS - total)]
+                if sel.size == 0:
+                    break
+            tri = mesh.positions.reshape(-1, 3, 3)[sel].astype(np.float64)
+            M = inst.matrix.astype(np.float64)
+            w = tri @ M[:3, :3].T + M[:3, 3]
+            e1, e2 = w[:, 1] - w[:, 0], w[:, 2] - w[:, 0]
+            area = 0.5 * np.linalg.norm(np.cross(e1, e2), axis=1)
+            rad = radiance[mids[sel]]
+            power = area * rad.mean(axis=1) * np.pi
+            cdf = np.cumsum(power)
+            cdf = cdf / cdf[-1] if cdf[-1] > 0 else np.linspace(1.0 / len(cdf), 1.0, len(cdf))
+            rec = np.zeros((sel.size, EMITTER_FLOATS), np.float32)
+            rec[:, 0:3] = w[:, 0]
+            rec[:, 3] = area
+            rec[:, 4:7] = w[:, 1]
+            rec[:, 7] = ii
+            rec[:, 8:11] = w[:, 2]
+            rec[:, 11] = cdf
+            rec[:, 12:15] = rad
+            rec[:, 15] = power
+            groups.append({
+                "instance": ii, "object": inst.object_name, "first": total, "count": int(sel.size),
+                "center": w.reshape(-1, 3).mean(axis=0), "power": float(power.sum()),
+                "radiance_max": rad.max(axis=0), "triangles": w, "areas": area,
+            })
+            rows.append(rec)
+            total += sel.size
+        self.groups = groups
+        self.array = np.concatenate(rows) if rows else np.zeros((1, EMITTER_FLOATS), np.float32)
+        self.count = total
+
+
+def _resize(img: np.ndarray, w: int, h: int) -> np.ndarray:
+    """Bilinear resize of (H, W, 4) float32 (numpy, separable)."""
+    H, W = img.shape[:2]
+    if (H, W) == (h, w):
+        return img
+    ys = (np.arange(h) + 0.5) * H / h - 0.5
+    xs = (np.arange(w) + 0.5) * W / w - 0.5
+    y0 = np.clip(np.floor(ys).astype(int), 0, H - 1)
+    x0 = np.clip(np.floor(xs).astype(int), 0, W - 1)
+    y1 = np.clip(y0 + 1, 0, H - 1)
+    x1 = np.clip(x0 + 1, 0, W - 1)
+    fy = np.clip(ys - y0, 0, 1)[:, None, None]
+    fx = np.clip(xs - x0, 0, 1)[None, :, None]
+    top = img[y0][:, x0] * (1 - fx) + img[y0][:, x1] * fx
+    bot = img[y1][:, x0] * (1 - fx) + img[y1][:, x1] * fx
+    return (top * (1 - fy) + bot * fy).astype(np.float32)
+
+
+class GPUScene:
+    """Scene buffers of one GL context. Call ``update(scene)`` each frame; cheap when unchanged."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self._vbos: dict[str, tuple] = {}  # key -> (vbo, vertex count)
+        self._vaos: dict = {}
+        self.draws: list[tuple] = []  # (key, model matrix, normal matrix, object name)
+        self.material_buf = None
+        self.light_buf = None
+        self.emitter_buf = None
+        self.textures = None
+        self.scene: SceneData | None = None
+        self.emitters: EmitterSet | None = None
+        self.light_count = 0
+        self.emitter_count = 0
+        self.prev_matrices: dict[str, np.ndarray] = {}
+        self.matrices: dict[str, np.ndarray] = {}
+        self._fp = {}
+        self.version = 0  # bumps on any change (history invalidation)
+
+    # ------------------------------------------------------------------ upload
+    def update(self, scene: SceneData) -> dict:
+        changes = {"geometry": False, "materials": False, "lights": False, "textures": False}
+        self.prev_matrices = self.matrices
+        # geometry
+        keys = []
+        needed = set()
+        total_bytes = 0
+        for inst in scene.instances:
+            mesh = scene.meshes[inst.mesh]
+            key = getattr(mesh, "_gi_key", None)
+            if key is None or inst.material_map is not None:
+                key = _mesh_key(mesh, inst.material_map)
+                if inst.material_map is None:
+                    mesh._gi_key = key
+            keys.append(key)
+            needed.add(key)
+            if key not in self._vbos:
+                total_bytes += mesh.positions.shape[0] * 36
+        if total_bytes > MAX_VERTEX_BYTES:
+            raise SceneError(
+                f"The scene needs {total_bytes / 2**30:.1f} GiB of vertex data, more than GI Preview "
+                f"uploads at once ({MAX_VERTEX_BYTES / 2**30:.0f} GiB): reduce the triangle count "
+                f"(e.g. lower Subdivision levels) or hide objects from rendering.")
+        for inst, key in zip(scene.instances, keys):
+            if key in self._vbos:
+                continue
+            mesh = scene.meshes[inst.mesh]
+            mids = mesh.material_ids.astype(np.int64)
+            if inst.material_map is not None and mids.size:
+                mids = np.asarray(inst.material_map)[np.clip(mids, 0, len(inst.material_map) - 1)]
+            mids = np.where((mids < 0) | (mids >= len(scene.materials)), len(scene.materials), mids)
+            n = mesh.positions.shape[0]
+            data = np.empty((n, 9), np.float32)
+            data[:, 0:3] = mesh.positions
+            data[:, 3:6] = mesh.normals
+            data[:, 6:8] = mesh.uvs if mesh.uvs.shape[0] == n else 0.0
+            data[:, 8] = np.repeat(mids, 3).astype(np.float32)
+            try:
+                vbo = self.ctx.buffer(data.tobytes()) if n else None
+            except Exception as exc:
+                raise SceneError(f"Mesh '{mesh.name}' ({mesh.triangle_count} triangles) does not fit in GPU "
+                                 f"memory: {exc}") from None
+            self._vbos[key] = (vbo, n)
+            changes["geometry"] = True
+        for key in list(self._vbos):
+            if key not in needed:
+                vbo, _ = self._vbos.pop(key)
+                if vbo is not None:
+                    vbo.release()
+                for vk in [k for k in self._vaos if k[0] == key]:
+                    self._vaos.pop(vk).release()
+                changes["geometry"] = True
+        draws = []
+        mats = {}
+        for inst, key in zip(scene.instances, keys):
+            M = inst.matrix.astype(np.float64)
+            try:
+                nm = np.linalg.inv(M[:3, :3]).T
+            except np.linalg.LinAlgError:
+                nm = np.eye(3)
+            draws.append((key, M.astype(np.float32), nm.astype(np.float32), inst.object_name))
+            mats[inst.object_name] = M.astype(np.float32)
+        if [(d[0], d[1].tobytes()) for d in draws] != [(d[0], d[1].tobytes()) for d in self.draws]:
+            changes["geometry"] = True
+        self.draws = draws
+        self.matrices = mats
+
+        # materials and textures
+        mat = pack_materials(scene)
+        fp_m = hashlib.blake2b(mat.tobytes(), digest_size=16).hexdigest()
+        if fp_m != self._fp.get("materials"):
+            self._replace("material_buf", mat)
+            self._fp["materials"] = fp_m
+            changes["materials"] = True
+        tex_fp = hashlib.blake2b(b"".join(np.ascontiguousarray(t.pixels[::7, ::7]).tobytes() + str(t.pixels.shape).encode()
+                                          for t in scene.textures), digest_size=16).hexdigest()
+        if tex_fp != self._fp.get("textures") or self.textures is None:
+            self._upload_textures(scene)
+            self._fp["textures"] = tex_fp
+            changes["textures"] = True
+
+        # lights and emitters (depend on instance transforms too)
+        self.emitters = EmitterSet(scene)
+        lights = pack_lights(scene, self.emitters)
+        fp_l = hashlib.blake2b(lights.tobytes() + self.emitters.array.tobytes(), digest_size=16).hexdigest()
+        if fp_l != self._fp.get("lights"):
+            self._replace("light_buf", lights)
+            self._replace("emitter_buf", self.emitters.array)
+            self._fp["lights"] = fp_l
+            changes["lights"] = True
+        self.light_count = len(scene.lights) + len(self.emitters.groups)
+        self.emitter_count = self.emitters.count
+        self.light_array = lights
+        self.scene = scene
+        if any(changes.values()):
+            self.version += 1
+        return changes
+
+    def _replace(self, attr: str, array: np.ndarray):
+        old = getattr(self, attr)
+        data = np.ascontiguousarray(array, np.float32).tobytes()
+        if old is not None and old.size == len(data):
+            old.write(data)
+            return
+        if old is not None:
+            old.release()
+        setattr(self, attr, self.ctx.buffer(data))
+
+    def _upload_textures(self, scene: SceneData):
+        import moderngl
+
+        if self.textures is not None:
+            self.textures.release()
+        if not scene.textures:
+            self.textures = self.ctx.texture_array((1, 1, 1), 4, np.ones(4, np.float32).tobytes(), dtype="f4")
+            return
+        w = min(MAX_TEXTURE_SIZE, max(t.pixels.shape[1] for t in scene.textures))
+        h = min(MAX_TEXTURE_SIZE, max(t.pixels.shape[0] for t in scene.textures))
+        layers = [_resize(np.asarray(t.pixels, np.float32), w, h) for t in scene.textures]
+        data = np.stack(layers).astype(np.float16)
+        tex = self.ctx.texture_array((w, h, len(layers)), 4, data.tobytes(), dtype="f2")
+        tex.build_mipmaps()
+        tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        tex.anisotropy = 8.0
+        self.textures = tex
+
+    # ------------------------------------------------------------------ use
+    def bind(self, prog, texture_unit: int = 0):
+        """Bind the scene buffers (bindings from common.glsl) and the texture array."""
+        self.material_buf.bind_to_storage_buffer(0)
+        self.light_buf.bind_to_storage_buffer(1)
+        self.emitter_buf.bind_to_storage_buffer(2)
+        self.textures.use(texture_unit)
+        set_uniform(prog, "u_textures", texture_unit)
+        set_uniform(prog, "u_light_count", self.light_count)
+        set_uniform(prog, "u_emitter_count", self.emitter_count)
+        set_uniform(prog, "u_material_count", len(self.scene.materials) if self.scene else 0)
+
+    def vao(self, key: str, prog):
+        vk = (key, prog.glo)
+        vao = self._vaos.get(vk)
+        if vao is None:
+            vbo, _ = self._vbos[key]
+            attrs = [a for a in VERTEX_ATTRS if a in prog]
+            fmt = " ".join(f if a in attrs else f"{f[0]}x4" for f, a in zip(VERTEX_FORMAT.split(), VERTEX_ATTRS))
+            vao = self.ctx.vertex_array(prog, [(vbo, fmt, *attrs)])
+            self._vaos[vk] = vao
+        return vao
+
+    def draw(self, prog, *, prev: bool = False):
+        """Draw every instance with ``u_model``/``u_normal_matrix`` (and ``u_prev_model``)."""
+        for key, M, NM, name in self.draws:
+            vbo, n = self._vbos[key]
+            if not n:
+                continue
+            set_uniform(prog, "u_model", M)
+            set_uniform(prog, "u_normal_matrix", NM)
+            if prev:
+                set_uniform(prog, "u_prev_model", self.prev_matrices.get(name, M))
+            self.vao(key, prog).render(vertices=n)
+
+    def release(self):
+        for vao in self._vaos.values():
+            vao.release()
+        for vbo, _ in self._vbos.values():
+            if vbo is not None:
+                vbo.release()
+        for attr in ("material_buf", "light_buf", "emitter_buf", "textures"):
+            obj = getattr(self, attr)
+            if obj is not None:
+                obj.release()
+                setattr(self, attr, None)
+        self._vaos.clear()
+        self._vbos.clear()
+        self._fp.clear()

@@ -1,0 +1,1 @@
+"""Passes shared by techniques: G-buffer, shadow atlas, accumulation."""

@@ -1,0 +1,297 @@
+"""Shadow atlas: one R32F atlas holding every shadow view of every light.
+
+Views: six cube faces for point/spot/area/mesh lights (centred on a point sampled on the
+light each frame when the light has a size, so accumulated frames give physically sized
+penumbrae), and cascades (orthographic, fitted to slices of the camera frustum) for sun
+lights, whose direction is sampled inside the sun's disk each frame. The shading side is
+``shaders/lib/shadows.glsl``; the view record layout is ``ShadowView`` in common.glsl.
+Lights without size are rendered once and reused while the scene is unchanged.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..framegraph import Effect, Param, Pass
+from ..gpu_scene import LIGHT_MESH, set_uniform
+from ..scene_data import LightType
+
+ATLAS, VIEWS = "shadow.atlas", "shadow.views"
+VIEW_FLOATS = 32
+MAX_ATLAS = 8192
+
+
+def perspective(fov: float, near: float, far: float) -> np.ndarray:
+    f = 1.0 / math.tan(fov / 2)
+    return np.array([[f, 0, 0, 0], [0, f, 0, 0],
+                     [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)],
+                     [0, 0, -1, 0]], np.float64)
+
+
+def ortho(half: float, near: float, far: float) -> np.ndarray:
+    return np.array([[1 / half, 0, 0, 0], [0, 1 / half, 0, 0],
+                     [0, 0, -2 / (far - near), -(far + near) / (far - near)], [0, 0, 0, 1]], np.float64)
+
+
+def look_at(eye, forward, up) -> np.ndarray:
+    f = np.asarray(forward, np.float64)
+    f = f / np.linalg.norm(f)
+    up = np.asarray(up, np.float64)
+    if abs(np.dot(f, up)) > 0.99:
+        up = np.array([1.0, 0.0, 0.0]) if abs(f[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    s = np.cross(f, up)
+    s /= np.linalg.norm(s)
+    u = np.cross(s, f)
+    m = np.eye(4)
+    m[0, :3], m[1, :3], m[2, :3] = s, u, -f
+    m[:3, 3] = -m[:3, :3] @ np.asarray(eye, np.float64)
+    return m
+
+
+CUBE_DIRS = [((1, 0, 0), (0, 0, 1)), ((-1, 0, 0), (0, 0, 1)), ((0, 1, 0), (0, 0, 1)),
+             ((0, -1, 0), (0, 0, 1)), ((0, 0, 1), (0, 1, 0)), ((0, 0, -1), (0, 1, 0))]
+
+
+def _halton(i: int, b: int) -> float:
+    f, r = 1.0, 0.0
+    while i > 0:
+        f /= b
+        r += f * (i % b)
+        i //= b
+    return r
+
+
+class ShadowPass(Pass):
+    """Renders the shadow atlas and the view table for every light that casts shadows."""
+
+    name = "shadows"
+    provides = frozenset({Effect.SHADOWS})
+    writes = (ATLAS, VIEWS)
+    params = (
+        Param("shadow_resolution", 512, 64, 4096, "texels per side of one cube face / cascade"),
+        Param("cascades", 3, 1, 4, "sun cascades"),
+        Param("normal_offset", 1.5, 0.0, 8.0, "normal offset in texels"),
+    )
+    quality_ladder = (
+        {"shadow_resolution": 256, "cascades": 2},
+        {"shadow_resolution": 512, "cascades": 3},
+        {"shadow_resolution": 1024, "cascades": 3},
+        {"shadow_resolution": 2048, "cascades": 4},
+    )
+
+    def __init__(self, quality=None, **props):
+        super().__init__(quality, **props)
+        self.atlas = self.depth = self.fbo = self.view_buf = None
+        self._static_key = None
+
+    def reset_history(self):
+        super().reset_history()
+        self._static_key = None
+
+    # ------------------------------------------------------------------ views
+    def _sample_origin(self, light_rec, scene, k: int, rng: np.random.Generator):
+        """A point on the light for frame k (centre for lights without size)."""
+        u = (_halton(k + 1, 2), _halton(k + 1, 3))
+        if light_rec["type"] == LIGHT_MESH:
+            g = light_rec["group"]
+            areas = g["areas"]
+            cdf = np.cumsum(areas) / max(areas.sum(), 1e-20)
+            t = int(np.searchsorted(cdf, rng.random()))
+            t = min(t, len(areas) - 1)
+            a, b = rng.random(2)
+            if a + b > 1:
+                a, b = 1 - a, 1 - b
+            tri = g["triangles"][t]
+            return tri[0] + a * (tri[1] - tri[0]) + b * (tri[2] - tri[0])
+        L = light_rec["light"]
+        if L.type in (LightType.POINT, LightType.SPOT) and L.radius > 0:
+            # uniform in the ball: its projection covers the visible disk of the sphere
+            r = L.radius * u[0] ** (1 / 3)
+            z = 1 - 2 * u[1]
+            phi = 2 * math.pi * _halton(k + 1, 5)
+            s = math.sqrt(max(0.0, 1 - z * z))
+            return L.position + r * np.array([s * math.cos(phi), s * math.sin(phi), z], np.float32)
+        if L.type == LightType.AREA:
+            uu, vv = L.area_axes()
+            a, b = 2 * u[0] - 1, 2 * u[1] - 1
+            if L.shape in (2, 3):
+                rr, th = math.sqrt(u[0]), 2 * math.pi * u[1]
+                a, b = rr * math.cos(th), rr * math.sin(th)
+            return L.position + a * uu + b * vv
+        return L.position
+
+    def _sun_dir(self, L, k: int) -> np.ndarray:
+        d = L.direction.astype(np.float64)
+        half = 0.5 * L.angle
+        if half <= 1e-5:
+            return d
+        u1, u2 = _halton(k + 1, 2), _halton(k + 1, 3)
+        c = 1 - u1 * (1 - math.cos(half))
+        s = math.sqrt(max(0.0, 1 - c * c))
+        phi = 2 * math.pi * u2
+        t = np.cross(d, [0, 0, 1.0] if abs(d[2]) < 0.9 else [1.0, 0, 0])
+        t /= np.linalg.norm(t)
+        b = np.cross(d, t)
+        out = c * d + s * (math.cos(phi) * t + math.sin(phi) * b)
+        return out / np.linalg.norm(out)
+
+    def _build_views(self, rc, frame):
+        scene = rc.scene.scene
+        lo, hi = scene.world_bounds()
+        center = 0.5 * (lo + hi)
+        radius = max(float(np.linalg.norm(hi - lo)) * 0.5, 1e-3)
+        res = int(self["shadow_resolution"])
+        rng = np.random.default_rng(frame.sample * 7919 + 13)
+        records = []
+        for li, L in enumerate(scene.lights):
+            if L.cast_shadow and float(np.max(L.color)) > 0:
+                records.append({"index": li, "type": int(L.type), "light": L})
+        for gi, g in enumerate(rc.scene.emitters.groups):
+            records.append({"index": len(scene.lights) + gi, "type": LIGHT_MESH, "group": g})
+        views = []  # (light index, view_proj, origin, ortho, dir, texel, far)
+        cam = scene.camera
+        for rec in records:
+            if rec["type"] == int(LightType.SUN):
+                L = rec["light"]
+                d = self._sun_dir(L, frame.sample)
+                for (vp, origin, texel, far) in self._cascades(rc, cam, d, center, radius, res):
+                    views.append((rec["index"], vp, origin, 1, d, texel, far))
+                continue
+            origin = np.asarray(self._sample_origin(rec, scene, frame.sample, rng), np.float64)
+            far = float(np.linalg.norm(origin - center)) + radius * 1.01 + 1e-3
+            near = max(1e-3, far * 1e-5)
+            fov = math.radians(92.0)
+            proj = perspective(fov, near, far)
+            texel = 2 * math.tan(fov / 2) / res
+            for fwd, up in CUBE_DIRS:
+                vp = proj @ look_at(origin, fwd, up)
+                views.append((rec["index"], vp, origin, 0, np.zeros(3), texel, far))
+        return views
+
+    def _cascades(self, rc, cam, d, center, radius, res):
+        """Orthographic views along d, fitted to slices of the camera frustum (log splits)."""
+        n = int(self["cascades"])
+        view = cam.view.astype(np.float64)
+        inv_vp = np.linalg.inv(cam.projection.astype(np.float64) @ view)
+        # camera range limited to the scene
+        cpos = cam.position.astype(np.float64)
+        near = max(cam.clip_start, 1e-3)
+        far = min(cam.clip_end, float(np.linalg.norm(cpos - center)) + radius)
+        far = max(far, near * 1.01)
+        splits = [near * (far / near) ** (i / n) for i in range(n + 1)]
+        out = []
+        for i in range(n):
+            # frustum slice corners in world space via NDC at view depths
+            corners = []
+            for z_view in (splits[i], splits[i + 1]):
+                p_view = np.array([0, 0, -z_view, 1.0])
+                clip = cam.projection.astype(np.float64) @ p_view
+                zndc = clip[2] / clip[3]
+                for x in (-1, 1):
+                    for y in (-1, 1):
+                        w = inv_vp @ np.array([x, y, zndc, 1.0])
+                        corners.append(w[:3] / w[3])
+            corners = np.array(corners)
+            c = corners.mean(axis=0)
+            r = float(np.max(np.linalg.norm(corners - c, axis=1)))
+            r = min(r, radius * 1.05) if i == n - 1 else r
+            if i == n - 1 and r >= radius:
+                c = center
+            eye = c - d * (radius * 2 + r)
+            depth = radius * 4 + 2 * r
+            vp = ortho(r, 0.0, depth) @ look_at(eye, d, (0, 0, 1))
+            texel = 2 * r / res
+            out.append((vp, eye, texel, depth))
+        return out
+
+    # ------------------------------------------------------------------ run
+    def _ensure_atlas(self, rc, n_views: int):
+        res = int(self["shadow_resolution"])
+        cols = max(1, math.ceil(math.sqrt(max(n_views, 1))))
+        rows = max(1, math.ceil(max(n_views, 1) / cols))
+        while cols * res > MAX_ATLAS or rows * res > MAX_ATLAS:
+            res //= 2
+        size = (cols * res, rows * res)
+        if self.atlas is None or self.atlas.size != size:
+            for o in (self.fbo, self.atlas, self.depth):
+                if o is not None:
+                    o.release()
+            self.atlas = rc.ctx.texture(size, 1, dtype="f4")
+            import moderngl
+
+            self.atlas.filter = (moderngl.NEAREST, moderngl.NEAREST)
+            self.depth = rc.ctx.depth_texture(size)
+            self.fbo = rc.ctx.framebuffer(color_attachments=[self.atlas], depth_attachment=self.depth)
+            self._static_key = None
+        rc.resources[ATLAS] = self.atlas
+        return cols, res
+
+    def _dynamic(self, scene) -> bool:
+        """Does any view change from frame to frame (lights with size)?"""
+        for L in scene.lights:
+            if L.type in (LightType.POINT, LightType.SPOT) and L.radius > 0:
+                return True
+            if L.type == LightType.AREA or (L.type == LightType.SUN and L.angle > 1e-5):
+                return True
+        return bool(scene.lights and False) or bool(getattr(self, "_has_mesh", False))
+
+    def execute(self, rc, frame):
+        import moderngl
+
+        scene = rc.scene.scene
+        self._has_mesh = bool(rc.scene.emitters.groups)
+        key = (rc.scene.version, frame.view.tobytes() if any(L.type == LightType.SUN for L in scene.lights) else b"")
+        if self._static_key == key and not self._dynamic(scene):
+            return
+        views = self._build_views(rc, frame)
+        cols, res = self._ensure_atlas(rc, len(views))
+        atlas_w, atlas_h = self.atlas.size
+        table = np.zeros((max(1, len(views)), VIEW_FLOATS), np.float32)
+        light_views = {}
+        prog = rc.programs.program("raster/shadow.vert", "raster/shadow.frag")
+        self.fbo.use()
+        self.fbo.clear(1e30, 0, 0, 0, depth=1.0)
+        rc.ctx.enable(moderngl.DEPTH_TEST)
+        rc.ctx.disable(moderngl.CULL_FACE)
+        for vi, (li, vp, origin, is_ortho, d, texel, far) in enumerate(views):
+            cx, cy = vi % cols, vi // cols
+            rc.ctx.viewport = (cx * res, cy * res, res, res)
+            set_uniform(prog, "u_view_proj", vp.astype(np.float32))
+            set_uniform(prog, "u_origin", tuple(float(x) for x in origin))
+            set_uniform(prog, "u_dir", tuple(float(x) for x in d))
+            set_uniform(prog, "u_ortho", int(is_ortho))
+            rc.scene.draw(prog)
+            table[vi, 0:16] = vp.T.astype(np.float32).ravel()  # column-major mat4
+            table[vi, 16:20] = (cx * res / atlas_w, cy * res / atlas_h, res / atlas_w, res / atlas_h)
+            table[vi, 20:23] = origin
+            table[vi, 23] = is_ortho
+            table[vi, 24:27] = d
+            table[vi, 27] = texel
+            table[vi, 28] = far
+            table[vi, 29] = self["normal_offset"]
+            first, count = light_views.get(li, (vi, 0))
+            light_views[li] = (first, count + 1)
+        rc.ctx.disable(moderngl.DEPTH_TEST)
+        data = table.tobytes()
+        if self.view_buf is None or self.view_buf.size != len(data):
+            if self.view_buf is not None:
+                self.view_buf.release()
+            self.view_buf = rc.ctx.buffer(data)
+        else:
+            self.view_buf.write(data)
+        rc.resources[VIEWS] = self.view_buf
+        # write each light's view range into the light buffer (Light.shadow)
+        lights = rc.scene.light_array.copy()
+        lights[:, 24:26] = 0
+        for li, (first, count) in light_views.items():
+            lights[li, 24] = first
+            lights[li, 25] = count
+        rc.scene.light_buf.write(lights.tobytes())
+        self._static_key = key
+
+    def release(self):
+        for o in (self.fbo, self.atlas, self.depth, self.view_buf):
+            if o is not None:
+                o.release()
+        self.fbo = self.atlas = self.depth = self.view_buf = None

@@ -1,0 +1,273 @@
+"""Render sessions: SceneData in, RenderResult out. bpy-free; all GL work on the GL thread.
+
+``render()`` is the one entry point used by the engine (F12, animation, viewport), the
+comparison operator, the batch script and the tests. It plans the technique's frame graph
+against the scene analysis, runs ``samples`` frames (jittered, accumulated as a running
+mean) and reads back the image and AOVs. Sessions are keyed (``"final"``, ``"viewport"``,
+...) so that the viewport's progressive accumulation and an F12 render do not disturb
+each other; temporal state (history) lives in the session's graphs.
+"""
+from __future__ import annotations
+
+import logging
+import queue
+import statistics
+import threading
+import time
+
+import numpy as np
+
+from . import techniques
+from .analysis import analyse
+from .framegraph import FrameState, RenderContext
+from .gl import get_gl
+from .gpu_scene import GPUScene, set_uniform
+from .result import RenderResult, SkippedPass
+from .scene_data import SceneData, SceneError
+from .shaders import ProgramCache
+
+log = logging.getLogger(__name__)
+
+_sessions: dict[str, "Session"] = {}
+
+
+class Cancelled(Exception):
+    pass
+
+
+def _r2(k: int) -> tuple[float, float]:
+    """R2 low-discrepancy jitter in [-0.5, 0.5)^2; k = 0 is the pixel centre."""
+    g = 1.32471795724474602596
+    return (((0.5 + k / g) % 1.0) - 0.5, ((0.5 + k / (g * g)) % 1.0) - 0.5)
+
+
+def validate_scene(scene: SceneData):
+    if scene.camera is None:
+        raise SceneError(f"Scene '{scene.name}' has no camera: add a camera and make it the scene camera "
+                         f"(Scene Properties > Camera).")
+    if scene.width < 4 or scene.height < 4:
+        raise SceneError(f"Render resolution {scene.width}x{scene.height} is too small: GI Preview needs at "
+                         f"least 4x4 pixels (Output Properties > Format).")
+    if not any(scene.meshes[i.mesh].triangle_count for i in scene.instances):
+        raise SceneError(f"Scene '{scene.name}' is empty: no visible mesh to render. Add geometry or make "
+                         f"hidden objects renderable.")
+
+
+class Session:
+    """GL-thread state for one stream of renders: GPU scene, compiled graphs, accumulators."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.programs = ProgramCache(ctx)
+        self.gpu_scene = GPUScene(ctx)
+        self.rc: RenderContext | None = None
+        self.graphs: dict = {}
+        self.acc: dict[str, object] = {}
+        self.acc_count = 0
+        self.acc_key = None
+        self.prev_view_proj = None
+        self.sample_counter = 0
+
+    # -------------------------------------------------------------- helpers
+    def _graph(self, technique_id: str, quality: int):
+        key = (technique_id, quality)
+        if key not in self.graphs:
+            tech = techniques.get(technique_id)()
+            self.graphs[key] = (tech, tech.build(quality))
+        return self.graphs[key]
+
+    def _accumulate(self, name: str, tex, weight: float):
+        acc = self.acc.get(name)
+        if acc is None or acc.size != tex.size:
+            if acc is not None:
+                acc.release()
+            acc = self.ctx.texture(tex.size, 4, dtype="f4")
+            self.acc[name] = acc
+        prog = self.programs.compute("common/accumulate.comp")
+        acc.bind_to_image(0, read=True, write=True)
+        tex.use(0)
+        set_uniform(prog, "u_input", 0)
+        set_uniform(prog, "u_weight", float(weight))
+        w, h = tex.size
+        prog.run((w + 7) // 8, (h + 7) // 8, 1)
+
+    @staticmethod
+    def _read(tex, components=4) -> np.ndarray:
+        w, h = tex.size
+        dt = np.float16 if tex.dtype == "f2" else np.float32
+        arr = np.frombuffer(tex.read(), dt).reshape(h, w, tex.components)[..., :components]
+        return arr.astype(np.float32)
+
+    # -------------------------------------------------------------- render
+    def render(self, scene: SceneData, technique: str, quality: int, samples: int, *,
+               cancel: threading.Event | None = None, progress=None,
+               continue_accumulation: bool = False, keep_history: bool = False) -> RenderResult:
+        validate_scene(scene)
+        t_start = time.perf_counter()
+        requested = technique
+        analysis = analyse(scene)
+        if technique == "AUTO":
+            technique = techniques.auto_choice(analysis.needed)
+        tech, graph = self._graph(technique, quality)
+        changes = self.gpu_scene.update(scene)
+        size = (scene.width, scene.height)
+        if self.rc is None:
+            self.rc = RenderContext(self.ctx, self.programs, self.gpu_scene, size)
+        if self.rc.size != size:
+            self.rc.size = size
+        graph.compile(self.rc)
+        plan = graph.plan(analysis.needed, analysis.reasons)
+        cam = scene.camera
+        view = cam.view.astype(np.float64)
+        proj = cam.projection.astype(np.float64)
+        vp = proj @ view
+        acc_key = (technique, quality, size, self.gpu_scene.version, vp.astype(np.float32).tobytes())
+        if not (continue_accumulation and acc_key == self.acc_key):
+            self.acc_count = 0
+        scene_changed = any(changes.values())
+        if not keep_history or scene_changed:
+            if not keep_history:
+                graph.reset_history()
+        self.acc_key = acc_key
+        outputs = {"Combined": "color", **tech.outputs}
+        frame_times, pass_ms = [], {}
+        samples = max(1, int(samples))
+        for i in range(samples):
+            if cancel is not None and cancel.is_set():
+                if self.acc_count == 0:
+                    raise Cancelled()
+                break
+            k = self.acc_count
+            jx, jy = _r2(k)
+            jit = np.eye(4)
+            jit[0, 3] = 2.0 * jx / size[0]
+            jit[1, 3] = 2.0 * jy / size[1]
+            frame = FrameState(index=k, sample=self.sample_counter, jitter=(jx, jy), view=view.astype(np.float32),
+                               proj=(jit @ proj).astype(np.float32), proj_unjittered=proj.astype(np.float32),
+                               prev_view_proj=(self.prev_view_proj if self.prev_view_proj is not None else vp
+                                               ).astype(np.float32),
+                               camera_changed=k == 0, scene_changed=scene_changed and i == 0,
+                               seed=self.sample_counter)
+            t0 = time.perf_counter()
+            pass_ms = graph.execute(self.rc, frame, timers=True)
+            w = 1.0 / (k + 1)
+            for aov, res_name in outputs.items():
+                if res_name in self.rc.resources:
+                    self._accumulate(aov, self.rc.resources[res_name], w)
+            self.ctx.finish()
+            frame_times.append((time.perf_counter() - t0) * 1e3)
+            self.prev_view_proj = vp
+            self.acc_count += 1
+            self.sample_counter += 1
+            if progress is not None:
+                progress((i + 1) / samples)
+        image = self._read(self.acc["Combined"])
+        image[..., 3] = 1.0
+        aovs = {}
+        for aov in outputs:
+            if aov != "Combined" and aov in self.acc:
+                aovs[aov] = self._read(self.acc[aov], 3)
+        aovs.update(self._gbuffer_aovs(scene))
+        effects = sorted({e.value for p in plan.active for e in p.provides} & {e.value for e in analysis.needed})
+        warnings = list(scene.warnings)
+        if requested == "AUTO":
+            warnings.append(f"AUTO chose {technique}")
+        return RenderResult(
+            image=image, aovs=aovs, technique=technique, quality=quality, samples=self.acc_count,
+            pass_ms=pass_ms, frame_ms=float(statistics.median(frame_times)) if frame_times else 0.0,
+            total_ms=(time.perf_counter() - t_start) * 1e3, effects=effects,
+            skipped_passes=list(plan.skipped), warnings=warnings,
+            cancelled=bool(cancel is not None and cancel.is_set()))
+
+    def _gbuffer_aovs(self, scene: SceneData) -> dict:
+        """Depth (distance along the view axis), Normal (world) and DiffCol from the last G-buffer."""
+        res = self.rc.resources
+        out = {}
+        if "gbuffer.position" not in res:
+            return out
+        pos = self._read(res["gbuffer.position"])
+        bg = pos[..., 3] < 0
+        cam = scene.camera
+        fwd = cam.forward.astype(np.float32)
+        depth = (pos[..., :3] - cam.position[None, None, :]) @ fwd
+        depth = np.where(bg, np.float32(1e10), depth).astype(np.float32)
+        out["Depth"] = depth[..., None]
+        n = self._read(res["gbuffer.normal"], 3)
+        out["Normal"] = np.where(bg[..., None], 0.0, n).astype(np.float32)
+        alb = self._read(res["gbuffer.albedo"], 3)
+        metal = self._read(res["gbuffer.geonormal"])[..., 3:4]
+        out["DiffCol"] = np.where(bg[..., None], 0.0, alb * (1.0 - np.clip(metal, 0, 1))).astype(np.float32)
+        return out
+
+    def release(self):
+        for tech, g in self.graphs.values():
+            g.release()
+        self.graphs.clear()
+        for t in self.acc.values():
+            t.release()
+        self.acc.clear()
+        if self.rc is not None:
+            self.rc.resources.release()
+        self.gpu_scene.release()
+        self.programs.release()
+
+
+def _get_session(key: str) -> Session:
+    s = _sessions.get(key)
+    if s is None:
+        s = Session(get_gl().ctx)
+        _sessions[key] = s
+    return s
+
+
+def release_all():
+    """Free every session (runs on the GL thread)."""
+    for s in _sessions.values():
+        s.release()
+    _sessions.clear()
+
+
+def available_techniques():
+    return techniques.available()
+
+
+def render(scene: SceneData, technique: str = "DIRECT", quality: int = 1, samples: int = 1, *,
+           progress=None, cancel=None, continue_accumulation: bool = False, keep_history: bool = False,
+           session: str = "final", poll_s: float = 0.05) -> RenderResult:
+    """Render ``scene`` with a technique; blocks until done. Callable from any thread.
+
+    progress: ``f(fraction)`` called on the calling thread. cancel: a ``threading.Event``
+    or a callable returning True to stop; checked between frames (a cancelled render returns
+    what has accumulated, with ``cancelled=True``; cancelled before the first frame raises
+    ``Cancelled``).
+    """
+    if technique != "AUTO":
+        techniques.get(technique)  # unknown ids fail here, on the caller's thread
+    gl = get_gl()
+    stop = cancel if isinstance(cancel, threading.Event) else threading.Event()
+    prog_q: queue.Queue = queue.Queue()
+
+    def job():
+        sess = _get_session(session)
+        return sess.render(scene, technique, int(quality), int(samples), cancel=stop,
+                           progress=prog_q.put if progress else None,
+                           continue_accumulation=continue_accumulation, keep_history=keep_history)
+
+    fut = gl.submit(job)
+    while True:
+        try:
+            result = fut.result(timeout=poll_s)
+            break
+        except TimeoutError:
+            pass
+        except Exception:
+            raise
+        if callable(cancel) and not isinstance(cancel, threading.Event) and cancel():
+            stop.set()
+        if progress:
+            while not prog_q.empty():
+                progress(prog_q.get_nowait())
+    if progress:
+        while not prog_q.empty():
+            progress(prog_q.get_nowait())
+    return result

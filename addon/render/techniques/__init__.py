@@ -1,0 +1,121 @@
+"""Technique registry: one module per technique id (the ids of shared/TECHNIQUES.md).
+
+A technique is a list of passes (a FrameGraph) plus what it is compared against. Add a
+technique by writing ``techniques/<id>.py`` with a ``Technique`` subclass decorated with
+``@register`` and importing it in ``_load`` below.
+"""
+from __future__ import annotations
+
+import importlib
+import logging
+from dataclasses import dataclass
+
+from ..framegraph import FrameGraph
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class TechniqueInfo:
+    id: str
+    label: str
+    description: str
+    family: str
+    reference: str  # "direct" | "one_bounce" | "full" | "ao": the Cycles reference it models
+    quality_levels: tuple
+    default_quality: int
+    converges: bool
+    cost_rank: int
+
+
+class Technique:
+    """Base class. Subclasses set the metadata and implement ``passes(quality)``."""
+
+    id = "NONE"
+    label = "None"
+    description = ""
+    family = "core"
+    reference = "full"
+    quality_levels = (0, 1, 2, 3)
+    default_quality = 1
+    converges = True  # does accumulating frames (samples) improve the image
+    cost_rank = 100  # relative cost for AUTO's choice (lower = cheaper)
+    # AOV name -> resource name (accumulated and returned; "Combined" comes from "color")
+    outputs: dict = {}
+
+    def passes(self, quality: int) -> list:
+        raise NotImplementedError
+
+    def build(self, quality: int) -> FrameGraph:
+        return FrameGraph(self.passes(quality))
+
+    @classmethod
+    def info(cls) -> TechniqueInfo:
+        return TechniqueInfo(cls.id, cls.label, cls.description, cls.family, cls.reference,
+                             tuple(cls.quality_levels), cls.default_quality, cls.converges, cls.cost_rank)
+
+    @classmethod
+    def provides(cls) -> frozenset:
+        eff = set()
+        for p in cls().passes(cls.default_quality):
+            eff |= set(p.provides)
+        return frozenset(eff)
+
+
+REGISTRY: dict[str, type] = {}
+
+# Modules of techniques, in menu order. A module that fails to import is reported, not fatal.
+_MODULES = ("direct", "pt", "ssao", "hbao", "ssdo", "ssr")
+_loaded = False
+LOAD_ERRORS: dict[str, str] = {}
+
+
+def register(cls):
+    REGISTRY[cls.id] = cls
+    return cls
+
+
+def _load():
+    global _loaded
+    if _loaded:
+        return
+    _loaded = True
+    for mod in _MODULES:
+        try:
+            importlib.import_module(f"{__name__}.{mod}")
+        except ModuleNotFoundError as exc:
+            if exc.name and exc.name.endswith(f"techniques.{mod}"):
+                continue  # not written yet
+            LOAD_ERRORS[mod] = repr(exc)
+            log.error("GI Preview: technique module %s failed to import: %r", mod, exc)
+        except Exception as exc:  # pragma: no cover - a broken technique must not break the rest
+            LOAD_ERRORS[mod] = repr(exc)
+            log.error("GI Preview: technique module %s failed to import: %r", mod, exc)
+
+
+def available() -> list[TechniqueInfo]:
+    _load()
+    return [cls.info() for cls in REGISTRY.values()]
+
+
+def get(technique_id: str) -> type:
+    _load()
+    try:
+        return REGISTRY[technique_id]
+    except KeyError:
+        raise ValueError(f"unknown GI Preview technique '{technique_id}' (available: "
+                         f"{', '.join(REGISTRY)})") from None
+
+
+def auto_choice(needed: set) -> str:
+    """AUTO: the cheapest technique that covers the most of the effects the scene needs."""
+    _load()
+    best, best_key = "DIRECT", None
+    for cls in REGISTRY.values():
+        if cls.id == "PT" or getattr(cls, "auto_candidate", True) is False:
+            continue
+        covered = len(cls.provides() & needed)
+        key = (-covered, cls.cost_rank)
+        if best_key is None or key < best_key:
+            best, best_key = cls.id, key
+    return best

@@ -1,0 +1,90 @@
+// common.glsl — constants, scene structs and buffer bindings shared by every shader.
+// The host side of these layouts is addon/render/gpu_scene.py (one source of truth for
+// each std430 struct: keep the two in step).
+#ifndef GI_COMMON_GLSL
+#define GI_COMMON_GLSL
+
+#define PI 3.14159265358979323846
+#define TWO_PI 6.28318530717958647692
+#define INV_PI 0.31830988618379067154
+#define INV_FOUR_PI 0.07957747154594766788
+#define FLT_MAX 3.402823466e+38
+
+// Buffer binding points (a shader may override before including this file).
+#ifndef BIND_MATERIALS
+#define BIND_MATERIALS 0
+#endif
+#ifndef BIND_LIGHTS
+#define BIND_LIGHTS 1
+#endif
+#ifndef BIND_EMITTERS
+#define BIND_EMITTERS 2
+#endif
+#ifndef BIND_SHADOW_VIEWS
+#define BIND_SHADOW_VIEWS 3
+#endif
+
+// Light types (scene_data.LightType, plus emissive meshes grouped per object).
+#define LIGHT_POINT 0
+#define LIGHT_SPOT 1
+#define LIGHT_SUN 2
+#define LIGHT_AREA 3
+#define LIGHT_MESH 4
+
+#define SHAPE_SQUARE 0
+#define SHAPE_RECTANGLE 1
+#define SHAPE_DISK 2
+#define SHAPE_ELLIPSE 3
+
+struct Material {
+    vec4 base_color;   // rgb linear, w = texture layer (-1 = none)
+    vec4 params;       // metallic, roughness, ior, specular_ior_level
+    vec4 emission;     // rgb radiance (colour * strength), w = alpha
+    vec4 spec_tint;    // rgb specular tint, w = 1 when the material was understood exactly
+};
+
+struct Light {
+    vec4 pos_type;     // xyz position (area/sphere centre), w = LIGHT_*
+    vec4 dir_radius;   // xyz unit direction the light shines along, w = sphere radius | sun half-angle
+    vec4 color;        // rgb: point/spot intensity W/sr | sun irradiance W/m^2 | area/mesh radiance; w = power
+    vec4 axis_u;       // area: half-extent vector u, w = shape | spot: row 0 of world->light 3x3, w = cos(half cone)
+    vec4 axis_v;       // area: half-extent vector v, w = area (m^2) | spot: row 1, w = spot smoothness 1/((1-cos)*blend)
+    vec4 axis_w;       // spot: row 2 of world->light 3x3 | mesh: x = first emitter, y = count; w = casts shadow
+    vec4 shadow;       // x = first shadow view, y = view count, z = light index, w = unused
+};
+
+struct Emitter {       // one emissive triangle in world space
+    vec4 p0;           // xyz, w = area
+    vec4 p1;           // xyz, w = instance index
+    vec4 p2;           // xyz, w = cdf within its mesh light
+    vec4 radiance;     // rgb, w = power (radiance luminance * area * pi)
+};
+
+struct ShadowView {
+    mat4 view_proj;    // world -> clip of this view
+    vec4 rect;         // atlas uv offset xy, scale zw
+    vec4 origin;       // xyz origin of the view (light sample point), w = 0 perspective (distance), 1 ortho (depth)
+    vec4 dir;          // xyz: ortho light direction, w = world size of one texel at distance 1 (persp) | texel size (ortho)
+    vec4 misc;         // x = far distance, y = normal-offset scale, zw unused
+};
+
+#ifdef USE_SCENE_BUFFERS
+layout(std430, binding = BIND_MATERIALS) readonly buffer MaterialBuffer { Material materials[]; };
+layout(std430, binding = BIND_LIGHTS) readonly buffer LightBuffer { Light lights[]; };
+layout(std430, binding = BIND_EMITTERS) readonly buffer EmitterBuffer { Emitter emitters[]; };
+uniform int u_light_count;
+uniform int u_emitter_count;
+#endif
+
+float max3(vec3 v) { return max(v.x, max(v.y, v.z)); }
+float luminance(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }
+float sqr(float x) { return x * x; }
+float saturate(float x) { return clamp(x, 0.0, 1.0); }
+
+// Replace NaN/Inf by 0 and clamp to a finite range (every technique's final write goes through this).
+vec3 sanitize(vec3 c) {
+    bvec3 bad = bvec3(isnan(c.x) || isinf(c.x), isnan(c.y) || isinf(c.y), isnan(c.z) || isinf(c.z));
+    return clamp(mix(c, vec3(0.0), bad), vec3(0.0), vec3(1e20));
+}
+
+#endif

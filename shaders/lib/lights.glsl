@@ -1,0 +1,151 @@
+// lights.glsl — light geometry in Cycles' units, shared by every technique:
+// spot cone attenuation (Cycles' smoothstep on the light-space ray), sampling points on
+// lights (sphere, sun disk, area rectangle/disk/ellipse, emissive triangles) with their
+// solid-angle pdfs, ray intersection with light shapes (for MIS), and exact irradiance from
+// a polygon (Lambert's contour integral with horizon clipping) for diffuse area lighting.
+// Requires common.glsl (with USE_SCENE_BUFFERS) and sampling.glsl.
+#ifndef GI_LIGHTS_GLSL
+#define GI_LIGHTS_GLSL
+
+// Cycles: attenuation = smoothstep((cos - cos_half) * smooth), ray in light space.
+float spot_attenuation(Light L, vec3 ray_from_light) {
+    vec3 local = normalize(vec3(dot(L.axis_u.xyz, ray_from_light), dot(L.axis_v.xyz, ray_from_light),
+                                dot(L.axis_w.xyz, ray_from_light)));
+    float c = -local.z;  // lights shine along local -Z
+    float t = clamp((c - L.axis_u.w) * L.axis_v.w, 0.0, 1.0);
+    return t * t * (3.0 - 2.0 * t);
+}
+
+// Point on the area light's shape for u in [0,1)^2 (world space).
+vec3 area_light_point(Light L, vec2 u) {
+    int shape = int(L.axis_u.w + 0.5);
+    vec2 q = (shape == SHAPE_DISK || shape == SHAPE_ELLIPSE) ? sample_disk(u) : 2.0 * u - 1.0;
+    return L.pos_type.xyz + q.x * L.axis_u.xyz + q.y * L.axis_v.xyz;
+}
+
+// Does the ray hit the area light's front (emitting) face? Returns distance or -1.
+float intersect_area_light(Light L, vec3 o, vec3 d) {
+    vec3 n = L.dir_radius.xyz;  // emission direction
+    float dn = dot(d, n);
+    if (dn >= 0.0) return -1.0;  // must travel against the emission direction to see the front
+    float t = dot(L.pos_type.xyz - o, n) / dn;
+    if (t <= 0.0) return -1.0;
+    vec3 q = o + t * d - L.pos_type.xyz;
+    vec3 u = L.axis_u.xyz, v = L.axis_v.xyz;
+    float a = dot(q, u) / dot(u, u);
+    float b = dot(q, v) / dot(v, v);
+    int shape = int(L.axis_u.w + 0.5);
+    bool inside = (shape == SHAPE_DISK || shape == SHAPE_ELLIPSE) ? (a * a + b * b <= 1.0)
+                                                                 : (abs(a) <= 1.0 && abs(b) <= 1.0);
+    return inside ? t : -1.0;
+}
+
+// Ray-sphere: distance to the first hit or -1.
+float intersect_sphere(vec3 c, float r, vec3 o, vec3 d) {
+    vec3 oc = o - c;
+    float b = dot(oc, d);
+    float cc = dot(oc, oc) - r * r;
+    float disc = b * b - cc;
+    if (disc < 0.0) return -1.0;
+    float s = sqrt(disc);
+    float t = -b - s;
+    if (t > 0.0) return t;
+    t = -b + s;
+    return t > 0.0 ? t : -1.0;
+}
+
+// ---- Polygon irradiance (Lambert 1760; Arvo 1995): E = L/2 * sum theta_i (n . gamma_i).
+// Vertices are relative to the shading point. The polygon is clipped to the upper
+// hemisphere of n. Returns the (signed) form-factor integral sum / 2, i.e. E / L.
+#define MAX_POLY 20
+float polygon_irradiance_factor(vec3 verts[MAX_POLY], int count, vec3 n) {
+    // Sutherland-Hodgman clip against the plane dot(n, x) >= 0.
+    vec3 clipped[MAX_POLY];
+    int m = 0;
+    for (int i = 0; i < count; ++i) {
+        vec3 a = verts[i];
+        vec3 b = verts[(i + 1) % count];
+        float da = dot(n, a), db = dot(n, b);
+        if (da >= 0.0 && m < MAX_POLY) clipped[m++] = a;
+        if ((da >= 0.0) != (db >= 0.0) && m < MAX_POLY) {
+            float t = da / (da - db);
+            clipped[m++] = a + t * (b - a);
+        }
+    }
+    if (m < 3) return 0.0;
+    float sum = 0.0;
+    for (int i = 0; i < m; ++i) {
+        vec3 a = normalize(clipped[i]);
+        vec3 b = normalize(clipped[(i + 1) % m]);
+        float c = clamp(dot(a, b), -1.0, 1.0);
+        vec3 cr = cross(a, b);
+        float len = length(cr);
+        if (len < 1e-9) continue;
+        float theta = acos(c);
+        sum += theta * dot(n, cr) / len;
+    }
+    return 0.5 * sum;
+}
+
+// Irradiance factor (E / Le) of an area light at p with normal n; 0 behind the light.
+float area_light_irradiance_factor(Light L, vec3 p, vec3 n) {
+    vec3 c = L.pos_type.xyz - p;
+    if (dot(-c, L.dir_radius.xyz) <= 0.0) return 0.0;  // p is behind the emitting face
+    vec3 u = L.axis_u.xyz, v = L.axis_v.xyz;
+    int shape = int(L.axis_u.w + 0.5);
+    vec3 verts[MAX_POLY];
+    int count;
+    if (shape == SHAPE_DISK || shape == SHAPE_ELLIPSE) {
+        // a 16-gon with the ellipse's area (circumradius scaled so the areas match)
+        const int N = 16;
+        float k = sqrt(PI / (0.5 * float(N) * sin(TWO_PI / float(N))));
+        for (int i = 0; i < N; ++i) {
+            float a = TWO_PI * float(i) / float(N);
+            verts[i] = c + k * (cos(a) * u + sin(a) * v);
+        }
+        count = N;
+    } else {
+        verts[0] = c - u - v; verts[1] = c + u - v; verts[2] = c + u + v; verts[3] = c - u + v;
+        count = 4;
+    }
+    return abs(polygon_irradiance_factor(verts, count, n));
+}
+
+// Irradiance factor of one emissive triangle (two-sided emitter).
+float triangle_irradiance_factor(vec3 a, vec3 b, vec3 c, vec3 p, vec3 n) {
+    vec3 verts[MAX_POLY];
+    verts[0] = a - p; verts[1] = b - p; verts[2] = c - p;
+    return abs(polygon_irradiance_factor(verts, 3, n));
+}
+
+// Solid-angle pdf of sampling point q uniformly on an area A seen from p with light normal ln.
+float area_to_solid_angle_pdf(vec3 p, vec3 q, vec3 ln, float area) {
+    vec3 d = q - p;
+    float dist2 = dot(d, d);
+    float cosl = abs(dot(ln, d)) * inversesqrt(max(dist2, 1e-20));
+    return cosl > 1e-8 ? dist2 / (cosl * area) : 0.0;
+}
+
+#ifdef USE_SCENE_BUFFERS
+// Choose an emitter triangle of mesh light L by its power CDF; returns index, p = probability.
+int pick_emitter(Light L, float u, out float prob) {
+    int first = int(L.axis_w.x + 0.5);
+    int count = int(L.axis_w.y + 0.5);
+    int lo = 0, hi = count - 1;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (emitters[first + mid].p2.w < u) lo = mid + 1; else hi = mid;
+    }
+    float prev = lo > 0 ? emitters[first + lo - 1].p2.w : 0.0;
+    prob = max(emitters[first + lo].p2.w - prev, 1e-12);
+    return first + lo;
+}
+
+float emitter_probability(Light L, int index) {
+    int first = int(L.axis_w.x + 0.5);
+    float prev = index > first ? emitters[index - 1].p2.w : 0.0;
+    return max(emitters[index].p2.w - prev, 1e-12);
+}
+#endif
+
+#endif

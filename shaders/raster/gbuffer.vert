@@ -1,0 +1,33 @@
+// gbuffer.vert — G-buffer geometry stage: world position, normals, uv, material, and the
+// previous frame's clip position for motion vectors.
+#include "lib/common.glsl"
+
+in vec3 in_position;
+in vec3 in_normal;
+in vec2 in_uv;
+in float in_material;
+
+uniform mat4 u_model;
+uniform mat4 u_prev_model;
+uniform mat3 u_normal_matrix;
+uniform mat4 u_view_proj;        // jittered
+uniform mat4 u_view_proj_nojit;  // unjittered, for motion
+uniform mat4 u_prev_view_proj;   // unjittered, previous frame
+
+out vec3 v_world;
+out vec3 v_normal;
+out vec2 v_uv;
+flat out int v_material;
+out vec4 v_clip;
+out vec4 v_prev_clip;
+
+void main() {
+    vec4 w = u_model * vec4(in_position, 1.0);
+    v_world = w.xyz;
+    v_normal = u_normal_matrix * in_normal;
+    v_uv = in_uv;
+    v_material = int(in_material + 0.5);
+    v_clip = u_view_proj_nojit * w;
+    v_prev_clip = u_prev_view_proj * (u_prev_model * vec4(in_position, 1.0));
+    gl_Position = u_view_proj * w;
+}
