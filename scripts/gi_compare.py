@@ -13,7 +13,8 @@ ARGS
   --quality LEVELS      e.g. 0,1,2 or all (default: all levels of each technique)
   --res N               width in pixels (height keeps the scene's aspect; demo scenes are square)
   --ref-spp N           Cycles reference samples (default 256)
-  --frames N            renders per technique and quality for timing (time = median; default 3)
+  --frames N            timed renders per technique and quality, after one untimed warm-up
+                        render (time_ms = median frame time x samples; default 3)
   --samples N           accumulation samples for techniques that converge (default 1)
   --cycles-curve LIST   Cycles spp list for its own error/time curve (default 1,2,4,...,ref-spp/4)
   --reference KIND      full | direct | one_bounce | ao | auto (default auto: each technique
@@ -253,6 +254,8 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
     entries, images = [], {}
     for i, (tech, q) in enumerate(plan):
         log(f"[{i + 1}/{len(plan)}] {tech} q{q}: {opts.frames} render(s) of {opts.samples} sample(s) ...")
+        # one untimed warm-up render (shader compilation, GPU scene upload), then the timed ones
+        session.render(sd, technique=tech, quality=q, samples=opts.samples)
         results = []
         for _ in range(opts.frames):
             results.append(session.render(sd, technique=tech, quality=q, samples=opts.samples))
