@@ -492,12 +492,13 @@ def _read_mesh(mesh, lut: np.ndarray, name: str) -> Mesh:
 
 
 def export_scene(depsgraph, *, width: int | None = None, height: int | None = None,
-                 camera=None) -> SceneData:
+                 camera=None, view_camera: Camera | None = None) -> SceneData:
     """Convert an evaluated depsgraph into a :class:`SceneData`.
 
     ``width``/``height`` default to the scene's render resolution times its percentage;
-    ``camera`` (a camera object) defaults to ``scene.camera``. Raises :class:`SceneError`
-    for a missing or panoramic camera and for a resolution below 4 pixels.
+    ``camera`` (a camera object) defaults to ``scene.camera``; ``view_camera`` (a ready
+    :class:`Camera`, e.g. the 3D viewport's view) replaces the camera object entirely. Raises
+    :class:`SceneError` for a missing or panoramic camera and for a resolution below 4 pixels.
     """
     scene = depsgraph.scene_eval
     r = scene.render
@@ -510,7 +511,10 @@ def export_scene(depsgraph, *, width: int | None = None, height: int | None = No
         raise SceneError(f"Scene '{scene.name}': the render resolution {width}x{height} is too "
                          "small; GI Preview needs at least 4x4 pixels")
     ex = _Exporter(depsgraph)
-    ex.camera(scene, camera if camera is not None else scene.camera, width, height)
+    if view_camera is not None:
+        ex.data.camera = view_camera
+    else:
+        ex.camera(scene, camera if camera is not None else scene.camera, width, height)
     ex.run_geometry_and_lights()
     ex.world(scene)
     data = ex.data

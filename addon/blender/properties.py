@@ -1,0 +1,55 @@
+"""Scene settings: ``scene.gi_preview`` (public contract, see DESIGN.md)."""
+from __future__ import annotations
+
+import bpy
+
+from ..render import techniques
+
+AUTO_ITEM = ("AUTO", "Auto", "The planner picks the cheapest technique that covers what the scene needs")
+
+# Enum items are built once (Blender keeps references to the strings).
+_ITEMS: list = []
+
+
+def technique_items(self=None, context=None):
+    if not _ITEMS:
+        _ITEMS.append(AUTO_ITEM)
+        for info in techniques.available():
+            _ITEMS.append((info.id, info.label, info.description))
+    return _ITEMS
+
+
+def _update(self, context):
+    # Any change restarts the viewport's accumulation (handled by the engine comparing keys).
+    for area in getattr(getattr(context, "screen", None), "areas", []) or []:
+        if area.type == "VIEW_3D":
+            area.tag_redraw()
+
+
+class GIPreviewSceneSettings(bpy.types.PropertyGroup):
+    technique: bpy.props.EnumProperty(
+        name="Technique", items=technique_items, update=_update,
+        description="Global-illumination technique GI Preview renders with")
+    samples: bpy.props.IntProperty(
+        name="Samples", default=16, min=1, max=65536, soft_max=1024,
+        description="Frames accumulated by an F12 render (anti-aliasing, soft shadows, noise)")
+    viewport_samples: bpy.props.IntProperty(
+        name="Viewport Samples", default=16, min=1, max=65536, soft_max=1024,
+        description="Frames the viewport accumulates while nothing changes")
+    quality: bpy.props.IntProperty(
+        name="Quality", default=1, min=0, max=3, update=_update,
+        description="Level of the technique's quality ladder (0 = fastest, 3 = most accurate)")
+    viewport_scale: bpy.props.FloatProperty(
+        name="Viewport Resolution", default=0.5, min=0.1, max=1.0, subtype="FACTOR",
+        description="Viewport render resolution relative to the region (lower is faster)")
+
+
+classes = (GIPreviewSceneSettings,)
+
+
+def register_props():
+    bpy.types.Scene.gi_preview = bpy.props.PointerProperty(type=GIPreviewSceneSettings)
+
+
+def unregister_props():
+    del bpy.types.Scene.gi_preview
