@@ -19,6 +19,8 @@ classes = (
 
 
 def register():
+    if hasattr(bpy.utils, "expose_bundled_modules"):
+        bpy.utils.expose_bundled_modules()  # OpenImageIO for EXR I/O (PyPI bpy module)
     for cls in classes:
         bpy.utils.register_class(cls)
     properties.register_props()

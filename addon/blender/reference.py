@@ -63,6 +63,11 @@ from ..compare import cache as _cache
 from ..compare import imageio
 
 KINDS = ("full", "direct", "one_bounce", "ao")
+FAIR_SETTINGS_SUMMARY = (
+    "CPU; box pixel filter 1 px; no denoising; no clamping (direct/indirect 0); filter glossy 0; "
+    "no adaptive sampling, no time limit; fixed seed; light tree and caustics on (Cycles defaults); "
+    "no path guiding, no fast GI; opaque film; no motion blur, compositing or sequencer; "
+    "32-bit float EXR, scene-linear")
 DEFAULT_SEED = 0
 DEFAULT_AO_DISTANCE = 1.0
 

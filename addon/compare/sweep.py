@@ -182,6 +182,12 @@ def chart_svg(points, curve, *, metric: str = "relMSE", title: str = "",
     for p in pts:
         if p["technique"] not in techs:
             techs.append(p["technique"])
+    placed: list[tuple[float, float, float, float]] = []  # label boxes, to avoid overlaps
+
+    def free(bx):
+        return all(bx[0] >= o[2] or bx[2] <= o[0] or bx[1] >= o[3] or bx[3] <= o[1] for o in placed)
+
+    markers = []
     for i, tech in enumerate(techs):
         col = _PALETTE[i % len(_PALETTE)]
         tp = sorted((p for p in pts if p["technique"] == tech), key=lambda p: (p.get("quality") or 0))
@@ -191,9 +197,19 @@ def chart_svg(points, curve, *, metric: str = "relMSE", title: str = "",
             parts.append(f'<path d="{d}" fill="none" stroke="{col}" stroke-dasharray="4 3"/>')
         for p in tp:
             x, y = X(p["time_ms"]), Y(p["error"])
-            label = f"{tech} q{p.get('quality')}" if p.get("quality") is not None else str(tech)
             parts.append(f'<rect x="{x - 4:.1f}" y="{y - 4:.1f}" width="8" height="8" fill="{col}"/>')
-            parts.append(f'<text x="{x + 7:.1f}" y="{y + 4:.1f}" fill="{col}">{html.escape(label)}</text>')
+            placed.append((x - 4, y - 4, x + 4, y + 4))
+            markers.append((x, y, col, f"{tech} q{p.get('quality')}" if p.get("quality") is not None
+                            else str(tech)))
+    for x, y, col, label in markers:
+        lw = 6.2 * len(label)
+        for dx, dy in ((7, 4), (7, 16), (7, -8), (-7 - lw, 4), (7, 28), (-7 - lw, 16), (-7 - lw, -8),
+                       (7, -20), (-7 - lw, 28), (-7 - lw, -20)):
+            bx = (x + dx, y + dy - 10, x + dx + lw, y + dy + 2)
+            if free(bx):
+                break
+        placed.append(bx)
+        parts.append(f'<text x="{bx[0]:.1f}" y="{bx[3] - 2:.1f}" fill="{col}">{html.escape(label)}</text>')
     # legend
     lx, ly = ml + pw + 14, mt + 10
     parts.append(f'<line x1="{lx}" y1="{ly}" x2="{lx + 22}" y2="{ly}" stroke="#444" stroke-width="2"/>')
@@ -233,9 +249,10 @@ def chart_png(points, curve, path: str, *, metric: str = "relMSE", title: str = 
         col = _PALETTE[i % len(_PALETTE)]
         tp = sorted((p for p in pts if p["technique"] == tech), key=lambda p: (p.get("quality") or 0))
         ax.plot([p["time_ms"] for p in tp], [p["error"] for p in tp], "s--", color=col, label=str(tech))
-        for p in tp:
+        for j, p in enumerate(tp):
             ax.annotate(f"{tech} q{p.get('quality')}", (p["time_ms"], p["error"]),
-                        textcoords="offset points", xytext=(6, -3), fontsize=8, color=col)
+                        textcoords="offset points", xytext=((6, -3), (6, -13), (6, 7), (-62, -3))[j % 4],
+                        fontsize=8, color=col)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("time per frame (ms, log scale)")

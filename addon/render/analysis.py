@@ -90,7 +90,7 @@ def analyse(scene: SceneData) -> SceneAnalysis:
 
     need(Effect.DIRECT, bool(lights_on) and has_geometry,
          "no light with non-zero strength" if has_geometry else "no geometry")
-    need(Effect.SHADOWS, bool(shadowing) and has_geometry, "no light casts shadows")
+    need(Effect.SHADOWS, (bool(shadowing) or bool(emissive)) and has_geometry, "no light casts shadows")
     need(Effect.EMISSION, bool(emissive), "no emissive material")
     need(Effect.ENVIRONMENT, world_on, "world is black")
     need(Effect.INDIRECT_DIFFUSE, any_light and has_geometry,

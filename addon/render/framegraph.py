@@ -4,7 +4,8 @@ The pass contract (docs/ARCHITECTURE.md):
 
 * ``provides``: the effects a pass contributes (``Effect``); the planner runs a pass only
   when the scene calls for one of them, or when a running pass reads what it writes.
-* ``reads`` / ``writes``: resource names (``"gbuffer.normal"``, ``"shadow.atlas"``,
+* ``reads`` / ``writes``: resource names (a pass that writes what a running pass reads
+  runs too; ``optional_reads`` are used when present and pull nothing in) (``"gbuffer.normal"``, ``"shadow.atlas"``,
   ``"color"``); ``history``: resources kept across frames (reset on any parameter change).
 * ``params``: ``Param`` declarations with ranges; ``quality_ladder``: one dict of parameter
   values per quality level (the cost/accuracy sweep walks it).
@@ -66,6 +67,7 @@ class Pass:
     name: str = "pass"
     provides: frozenset = frozenset()
     reads: tuple = ()
+    optional_reads: tuple = ()  # used if some running pass wrote them (e.g. shadows)
     writes: tuple = ()
     history: tuple = ()
     params: tuple = ()  # of Param

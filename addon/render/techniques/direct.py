@@ -33,7 +33,8 @@ class DirectLightPass(Pass):
     name = "direct_light"
     provides = frozenset({Effect.DIRECT, Effect.EMISSION, Effect.ENVIRONMENT})
     always = True  # produces the colour every technique builds on
-    reads = (ALBEDO, NORMAL, POSITION, GEONORMAL, ATLAS, VIEWS)
+    reads = (ALBEDO, NORMAL, POSITION, GEONORMAL)
+    optional_reads = (ATLAS, VIEWS)  # without shadow-casting lights the shadow pass is skipped
     writes = (COLOR, AOV_DIRECT, AOV_EMIT)
     params = (
         Param("glossy_samples", 2, 1, 16, "light+BSDF sample pairs per light per pixel per frame"),
@@ -54,7 +55,7 @@ class DirectLightPass(Pass):
                                             (POSITION, "u_gb_position"), (GEONORMAL, "u_gb_geonormal")), start=1):
             res[name].use(unit)
             set_uniform(prog, uni, unit)
-        if ATLAS in res and VIEWS in res:
+        if ATLAS in res and VIEWS in res:  # present when the shadow pass ran (now or before)
             res[ATLAS].use(5)
             res[VIEWS].bind_to_storage_buffer(3)
         set_uniform(prog, "u_shadow_atlas", 5)

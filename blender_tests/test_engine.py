@@ -1,0 +1,278 @@
+"""The GI_PREVIEW engine end to end through Blender's own render operator.
+
+F12-style renders of every demo scene (finite, non-black), a 3-frame animation, bad
+inputs (empty scene, no camera, too small a resolution, unsupported node, OpenGL
+unavailable) giving clear errors, cancellation, and the scene's settings unchanged.
+"""
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+import textwrap
+import threading
+import time
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+
+import gi_preview
+from gi_preview.blender import engine as engine_mod
+from gi_preview.blender.demo_scenes import DEMO_SCENES, build_demo, make_principled
+from gi_preview.compare import imageio
+from gi_preview.render import session
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(scope="module", autouse=True)
+def addon():
+    gi_preview.register()
+    yield
+    gi_preview.unregister()
+
+
+def render_to_array(scene, tmp_path, name="f12", after_render=None) -> np.ndarray:
+    """F12 through bpy.ops.render.render, saved as a float EXR and read back."""
+    bpy.ops.render.render(scene=scene.name)
+    if after_render is not None:
+        after_render()
+    path = str(tmp_path / f"{name}.exr")
+    s = scene.render.image_settings
+    s.media_type = "IMAGE"
+    s.file_format = "OPEN_EXR"
+    s.color_depth = "32"
+    bpy.data.images["Render Result"].save_render(path, scene=scene)
+    return imageio.read_exr(path)
+
+
+def settings_snapshot(scene) -> dict:
+    snap = {}
+    for owner, prefix in ((scene.render, "render"), (scene.gi_preview, "gi_preview"),
+                          (scene.view_settings, "view"), (scene.display_settings, "display"),
+                          (scene.render.image_settings, "image")):
+        for p in owner.bl_rna.properties:
+            if p.identifier in ("rna_type",) or p.type in ("POINTER", "COLLECTION"):
+                continue
+            v = getattr(owner, p.identifier)
+            snap[f"{prefix}.{p.identifier}"] = tuple(v) if hasattr(v, "__len__") and not isinstance(v, str) else v
+    snap["frame"] = scene.frame_current
+    snap["camera"] = scene.camera.name if scene.camera else None
+    snap["objects"] = sorted((o.name, tuple(round(x, 6) for x in o.matrix_world.col[3])) for o in scene.objects)
+    return snap
+
+
+@pytest.mark.parametrize("demo", [d[0] for d in DEMO_SCENES])
+def test_f12_every_demo_scene(demo, tmp_path):
+    sc = build_demo(demo, resolution=64)
+    try:
+        assert sc.render.engine == "GI_PREVIEW"
+        sc.gi_preview.technique = "DIRECT"
+        sc.gi_preview.samples = 4
+        before = settings_snapshot(sc)
+        snaps = []
+        img = render_to_array(sc, tmp_path, after_render=lambda: snaps.append(settings_snapshot(sc)))
+        assert img.shape == (64, 64, 4)
+        assert np.isfinite(img).all()
+        lum = img[..., :3].mean(axis=2)
+        assert lum.mean() > 1e-3, f"{demo}: black image"
+        assert (lum > 1e-3).mean() > 0.02, f"{demo}: almost all black"
+        info = engine_mod.last_render
+        assert info["scene"] == sc.name and info["samples"] == 4
+        assert {"Combined", "Depth", "Normal", "DiffCol", "Emit", "GI_Direct"} <= set(info["passes"])
+        after = snaps[0]
+        changed = {k: (before[k], after[k]) for k in before if before[k] != after.get(k)}
+        assert not changed, f"render changed scene settings: {changed}"
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+def test_skipped_passes_reported(tmp_path):
+    """A scene whose only light casts no shadow: the shadow pass is skipped, with its reason."""
+    sc = _new_scene("noshadow")
+    _add_plane(sc)
+    light = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
+    light.data.use_shadow = False
+    sc.collection.objects.link(light)
+    try:
+        sc.gi_preview.technique = "DIRECT"
+        sc.gi_preview.samples = 1
+        render_to_array(sc, tmp_path)
+        skipped = {s["pass"]: s["reason"] for s in engine_mod.last_render["skipped_passes"]}
+        assert skipped == {"shadows": "no light casts shadows"}
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+def test_animation_three_frames(tmp_path):
+    sc = build_demo("glossy_spheres", resolution=48)
+    try:
+        sc.gi_preview.technique = "DIRECT"
+        sc.gi_preview.samples = 2
+        mover = next(o for o in sc.objects if o.type == "MESH" and "sphere" in o.name.lower())
+        z0 = mover.location.z
+        for f, dz in ((1, 0.0), (3, 1.0)):
+            mover.location.z = z0 + dz
+            mover.keyframe_insert("location", frame=f)
+        sc.frame_start, sc.frame_end = 1, 3
+        sc.render.filepath = str(tmp_path / "anim_")
+        s = sc.render.image_settings
+        s.media_type = "IMAGE"
+        s.file_format = "OPEN_EXR"
+        s.color_depth = "32"
+        frame_before = sc.frame_current
+        bpy.ops.render.render(animation=True, scene=sc.name)
+        files = sorted(tmp_path.glob("anim_*.exr"))
+        assert len(files) == 3, files
+        imgs = [imageio.read_exr(str(f)) for f in files]
+        for im in imgs:
+            assert np.isfinite(im).all() and im[..., :3].mean() > 1e-3
+        # the sphere moves: consecutive frames differ
+        assert np.abs(imgs[0] - imgs[1]).mean() > 1e-4 and np.abs(imgs[1] - imgs[2]).mean() > 1e-4
+        assert sc.frame_current == frame_before
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+def _new_scene(name, with_camera=True, res=32):
+    sc = bpy.data.scenes.new(name)
+    sc.render.engine = "GI_PREVIEW"
+    sc.render.resolution_x = sc.render.resolution_y = res
+    if with_camera:
+        cam = bpy.data.objects.new(f"{name}_cam", bpy.data.cameras.new(f"{name}_cam"))
+        cam.location = (0, -5, 1)
+        cam.rotation_euler = (math.radians(85), 0, 0)
+        sc.collection.objects.link(cam)
+        sc.camera = cam
+    return sc
+
+
+def _add_plane(sc, mat=None):
+    me = bpy.data.meshes.new("plane")
+    me.from_pydata([(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)], [], [(0, 1, 2, 3)])
+    if mat:
+        me.materials.append(mat)
+    ob = bpy.data.objects.new("plane", me)
+    sc.collection.objects.link(ob)
+    return ob
+
+
+def test_empty_scene_clear_error():
+    sc = _new_scene("empty")
+    try:
+        with pytest.raises(RuntimeError, match="is empty: no visible mesh"):
+            bpy.ops.render.render(scene=sc.name)
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+def test_no_camera_clear_error():
+    sc = _new_scene("nocam", with_camera=False)
+    _add_plane(sc)
+    try:
+        with pytest.raises(RuntimeError, match="(?i)no camera"):
+            bpy.ops.render.render(scene=sc.name)
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+def test_too_small_resolution_clear_error():
+    sc = _new_scene("tiny", res=64)
+    _add_plane(sc)
+    sc.render.resolution_percentage = 5  # 64 * 5% = 3 px
+    try:
+        with pytest.raises(RuntimeError, match="too small"):
+            bpy.ops.render.render(scene=sc.name)
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+def test_unsupported_node_warns_and_renders(tmp_path):
+    sc = _new_scene("unsupported")
+    mat = make_principled("noisy", (0.2, 0.5, 0.8))
+    nt = mat.node_tree
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    nt.links.new(noise.outputs["Fac"], nt.nodes["Principled BSDF"].inputs["Roughness"])
+    _add_plane(sc, mat)
+    light = bpy.data.objects.new("sun", bpy.data.lights.new("sun", "SUN"))
+    sc.collection.objects.link(light)
+    try:
+        img = render_to_array(sc, tmp_path)
+        assert np.isfinite(img).all() and img[..., :3].mean() > 1e-3
+        warnings = " ".join(engine_mod.last_render["warnings"])
+        assert "noisy" in warnings and "Noise Texture" in warnings
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+def test_opengl_unavailable_clear_error(tmp_path):
+    """With OpenGL 4.6 demanded (llvmpipe has 4.5; a GPU driver may have it, then skip)."""
+    code = textwrap.dedent(f"""
+        import os, sys
+        os.environ["GI_PREVIEW_GL_REQUIRE"] = "490"
+        sys.path.insert(0, {str(Path(gi_preview.__file__).parent.parent)!r})
+        import bpy, gi_preview
+        gi_preview.register()
+        from gi_preview.blender.demo_scenes import build_demo
+        sc = build_demo("cornell", resolution=16)
+        try:
+            bpy.ops.render.render(scene=sc.name)
+            print("NO ERROR")
+        except RuntimeError as exc:
+            print("ERROR:", exc)
+        print("ALIVE")
+    """)
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    text = out.stdout + out.stderr
+    assert "ALIVE" in text, text[-2000:]
+    assert "ERROR: Error: GI Preview needs OpenGL 4.9" in text, text[-2000:]
+    assert "libegl1" in text
+
+
+def test_cancel_within_a_second():
+    """Cancelling stops the accumulation between frames: far fewer frames than asked."""
+    sc = build_demo("many_lights", resolution=64)
+    try:
+        from gi_preview.blender.export import export_scene
+
+        with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
+            dg = bpy.context.evaluated_depsgraph_get()
+        data = export_scene(dg)
+        session.render(data, "DIRECT", 1, 1)  # warm up (shader compile)
+        flag = {"stop_at": None}
+
+        def cancel():
+            if flag["stop_at"] is None:
+                flag["stop_at"] = time.perf_counter()
+            return True
+
+        t0 = time.perf_counter()
+        res = session.render(data, "DIRECT", 1, 100000, cancel=cancel)
+        elapsed = time.perf_counter() - t0
+        assert res.cancelled
+        assert res.samples < 100000
+        assert np.isfinite(res.image).all()
+        print(f"cancelled after {res.samples} frames, {elapsed:.2f} s")
+        assert elapsed < 5.0  # the cancel flag is honoured at the next frame boundary
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+def test_cancel_event_from_another_thread():
+    sc = build_demo("cornell", resolution=64)
+    try:
+        from gi_preview.blender.export import export_scene
+
+        with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
+            dg = bpy.context.evaluated_depsgraph_get()
+        data = export_scene(dg)
+        ev = threading.Event()
+        threading.Timer(0.3, ev.set).start()
+        res = session.render(data, "DIRECT", 1, 100000, cancel=ev)
+        assert res.cancelled and 0 < res.samples < 100000
+    finally:
+        bpy.data.scenes.remove(sc)
