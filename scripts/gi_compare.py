@@ -316,8 +316,7 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
                 "ref_spp": opts.ref_spp, "reference_mode": opts.reference, "resolution": f"{w}x{h}"},
         "reference": {**refs[primary].info()},
         "references": {k: r.info() for k, r in refs.items()},
-        "reference_settings": reference.__doc__.split("Fair settings")[1].split("\n\n")[0].strip(" :\n")
-        .replace("\n", " ") if "Fair settings" in (reference.__doc__ or "") else "",
+        "reference_settings": getattr(reference, "FAIR_SETTINGS_SUMMARY", ""),
         "cycles_curve": curves[primary],
         "cycles_curves": curves,
         "entries": entries,
