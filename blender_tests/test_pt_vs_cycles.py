@@ -177,11 +177,11 @@ def scene_textured(b):
     bsdf = next(n for n in nt.nodes if n.bl_idname == "ShaderNodeBsdfPrincipled")
     tn = nt.nodes.new("ShaderNodeTexImage")
     tn.image = img
-    tn.interpolation = "Closest"
+    tn.interpolation = "Linear"  # what GL samples (the exporter does not carry Closest)
     nt.links.new(tn.outputs["Color"], bsdf.inputs["Base Color"])
     b.mesh("floor", [(-2, -2, 0), (2, -2, 0), (2, 2, 0), (-2, 2, 0)], [(0, 1, 2, 3)], mat)
     me = bpy.data.objects[b.n("floor")].data
-    uv = me.uv_layers.new(name="UVMap")
+    uv = me.uv_layers.active or me.uv_layers.new(name="UVMap")
     for loop, co in zip(uv.data, [(0, 0), (1, 0), (1, 1), (0, 1)]):
         loop.uv = co
     b.light("key", "AREA", (0, 0, 2.0), size=1.5, energy=120.0)
