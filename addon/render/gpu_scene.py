@@ -127,6 +127,7 @@ def pack_lights(scene: SceneData, emitters: "EmitterSet") -> np.ndarray:
         r[21] = g["count"]
         r[23] = 1.0
         r[26] = len(recs)
+        r[27] = float(np.sum(g["areas"]))
         recs.append(r)
     if not recs:
         return np.zeros((1, LIGHT_FLOATS), np.float32)

@@ -142,12 +142,15 @@ class Session:
             jit = np.eye(4)
             jit[0, 3] = 2.0 * jx / size[0]
             jit[1, 3] = 2.0 * jy / size[1]
-            frame = FrameState(index=k, sample=self.sample_counter, jitter=(jx, jy), view=view.astype(np.float32),
+            # seeds: the accumulation index for a fresh render (deterministic F12), the running
+            # counter when history is kept (viewport, animation: new noise every frame)
+            seed = self.sample_counter if keep_history else k
+            frame = FrameState(index=k, sample=seed, jitter=(jx, jy), view=view.astype(np.float32),
                                proj=(jit @ proj).astype(np.float32), proj_unjittered=proj.astype(np.float32),
                                prev_view_proj=(self.prev_view_proj if self.prev_view_proj is not None else vp
                                                ).astype(np.float32),
                                camera_changed=k == 0, scene_changed=scene_changed and i == 0,
-                               seed=self.sample_counter)
+                               seed=seed)
             t0 = time.perf_counter()
             pass_ms = graph.execute(self.rc, frame, timers=True)
             w = 1.0 / (k + 1)

@@ -50,7 +50,7 @@ struct Light {
     vec4 axis_u;       // area: half-extent vector u, w = shape | spot: row 0 of world->light 3x3, w = cos(half cone)
     vec4 axis_v;       // area: half-extent vector v, w = area (m^2) | spot: row 1, w = spot smoothness 1/((1-cos)*blend)
     vec4 axis_w;       // spot: row 2 of world->light 3x3 | mesh: x = first emitter, y = count; w = casts shadow
-    vec4 shadow;       // x = first shadow view, y = view count, z = light index, w = unused
+    vec4 shadow;       // x = first shadow view, y = view count, z = light index, w = mesh light total area
 };
 
 struct Emitter {       // one emissive triangle in world space
@@ -64,7 +64,7 @@ struct ShadowView {
     mat4 view_proj;    // world -> clip of this view
     vec4 rect;         // atlas uv offset xy, scale zw
     vec4 origin;       // xyz origin of the view (light sample point), w = 0 perspective (distance), 1 ortho (depth)
-    vec4 dir;          // xyz: ortho light direction, w = world size of one texel at distance 1 (persp) | texel size (ortho)
+    vec4 dir;          // xyz: ortho light direction | light normal at the sampled origin (zero if none), w = world size of one texel at distance 1 (persp) | texel size (ortho)
     vec4 misc;         // x = far distance, y = normal-offset scale, zw unused
 };
 

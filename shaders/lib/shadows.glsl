@@ -2,13 +2,19 @@
 // (addon/render/passes/shadows.py). Each light owns a run of views (6 cube faces, or sun
 // cascades); the first view whose frustum holds the point answers, with a 3x3 PCF and
 // normal-offset + slope bias. Points outside every view are lit.
+// For lights with area, a view is rendered from one point y_k sampled on the light per
+// frame; shadow_ratio_weight() turns its visibility into an unbiased estimate of the
+// shadowed/unshadowed ratio (weighting by the point-to-point geometry term), so light
+// behind a receiver's horizon is not counted as shadow twice.
 #ifndef GI_SHADOWS_GLSL
 #define GI_SHADOWS_GLSL
 
 layout(std430, binding = BIND_SHADOW_VIEWS) readonly buffer ShadowViewBuffer { ShadowView shadow_views[]; };
 uniform sampler2D u_shadow_atlas;
 
-float shadow_visibility(Light L, vec3 p, vec3 ng) {
+// view_out: the index of the view that answered (-1 when none did).
+float shadow_visibility(Light L, vec3 p, vec3 ng, out int view_out) {
+    view_out = -1;
     int first = int(L.shadow.x + 0.5);
     int count = int(L.shadow.y + 0.5);
     if (count <= 0 || L.axis_w.w < 0.5) return 1.0;
@@ -25,10 +31,11 @@ float shadow_visibility(Light L, vec3 p, vec3 ng) {
         if (clip.w <= 0.0) continue;
         vec3 ndc = clip.xyz / clip.w;
         if (any(greaterThan(abs(ndc.xy), vec2(1.0))) || ndc.z > 1.0) continue;
+        view_out = i;
         if (ortho && ndc.z < -1.0) return 1.0;
         float metric = ortho ? dot(po - sv.origin.xyz, sv.dir.xyz) : length(po - sv.origin.xyz);
         float slope = sqrt(1.0 - cosg * cosg) / cosg;
-        float bias = texel * (0.5 + 1.0 * min(slope, 4.0)) + 1e-4 * metric;
+        float bias = texel * (0.3 + 0.6 * min(slope, 4.0)) + 1e-4 * metric;
         vec2 uv = (ndc.xy * 0.5 + 0.5);
         vec2 tile_px = sv.rect.zw * vec2(atlas);
         vec2 base_px = sv.rect.xy * vec2(atlas);
@@ -51,6 +58,20 @@ float shadow_visibility(Light L, vec3 p, vec3 ng) {
         return lit / wsum;
     }
     return 1.0;
+}
+
+// w(y_k) * A / F, with w the geometry term cos_x cos_y / d^2 of the sample point y_k
+// (view origin, light normal in view.dir), A the light's area and F the unshadowed
+// integral of w over the light (E / L). Expected value over y_k: 1 when unoccluded.
+float shadow_ratio_weight(int view, vec3 p, vec3 n, float area, float F, bool two_sided) {
+    if (view < 0 || F <= 1e-8) return 1.0;
+    ShadowView sv = shadow_views[view];
+    vec3 d = sv.origin.xyz - p;
+    float d2 = max(dot(d, d), 1e-12);
+    vec3 wd = d * inversesqrt(d2);
+    float cy = dot(sv.dir.xyz, -wd);
+    cy = two_sided ? abs(cy) : max(cy, 0.0);
+    return max(dot(n, wd), 0.0) * cy / d2 * area / F;
 }
 
 #endif

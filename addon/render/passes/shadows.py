@@ -91,8 +91,9 @@ class ShadowPass(Pass):
 
     # ------------------------------------------------------------------ views
     def _sample_origin(self, light_rec, scene, k: int, rng: np.random.Generator):
-        """A point on the light for frame k (centre for lights without size)."""
-        u = (_halton(k + 1, 2), _halton(k + 1, 3))
+        """A point on the light for frame k, and the light's normal there (zero if none).
+        Frame 0 uses the light's centre (the best single-frame hard shadow)."""
+        u = (_halton(k, 2), _halton(k, 3)) if k > 0 else (0.5, 0.5)
         if light_rec["type"] == LIGHT_MESH:
             g = light_rec["group"]
             areas = g["areas"]
@@ -103,28 +104,30 @@ class ShadowPass(Pass):
             if a + b > 1:
                 a, b = 1 - a, 1 - b
             tri = g["triangles"][t]
-            return tri[0] + a * (tri[1] - tri[0]) + b * (tri[2] - tri[0])
+            n = np.cross(tri[1] - tri[0], tri[2] - tri[0])
+            n = n / max(np.linalg.norm(n), 1e-20)
+            return tri[0] + a * (tri[1] - tri[0]) + b * (tri[2] - tri[0]), n
         L = light_rec["light"]
-        if L.type in (LightType.POINT, LightType.SPOT) and L.radius > 0:
+        if L.type in (LightType.POINT, LightType.SPOT) and L.radius > 0 and k > 0:
             # uniform in the ball: its projection covers the visible disk of the sphere
             r = L.radius * u[0] ** (1 / 3)
             z = 1 - 2 * u[1]
             phi = 2 * math.pi * _halton(k + 1, 5)
             s = math.sqrt(max(0.0, 1 - z * z))
-            return L.position + r * np.array([s * math.cos(phi), s * math.sin(phi), z], np.float32)
+            return L.position + r * np.array([s * math.cos(phi), s * math.sin(phi), z], np.float32), np.zeros(3)
         if L.type == LightType.AREA:
             uu, vv = L.area_axes()
             a, b = 2 * u[0] - 1, 2 * u[1] - 1
             if L.shape in (2, 3):
                 rr, th = math.sqrt(u[0]), 2 * math.pi * u[1]
                 a, b = rr * math.cos(th), rr * math.sin(th)
-            return L.position + a * uu + b * vv
-        return L.position
+            return L.position + a * uu + b * vv, L.direction.astype(np.float64)
+        return L.position, np.zeros(3)
 
     def _sun_dir(self, L, k: int) -> np.ndarray:
         d = L.direction.astype(np.float64)
         half = 0.5 * L.angle
-        if half <= 1e-5:
+        if half <= 1e-5 or k == 0:
             return d
         u1, u2 = _halton(k + 1, 2), _halton(k + 1, 3)
         c = 1 - u1 * (1 - math.cos(half))
@@ -142,7 +145,7 @@ class ShadowPass(Pass):
         center = 0.5 * (lo + hi)
         radius = max(float(np.linalg.norm(hi - lo)) * 0.5, 1e-3)
         res = int(self["shadow_resolution"])
-        rng = np.random.default_rng(frame.sample * 7919 + 13)
+        rng = np.random.default_rng(frame.index * 7919 + 13)
         records = []
         for li, L in enumerate(scene.lights):
             if L.cast_shadow and float(np.max(L.color)) > 0:
@@ -154,11 +157,12 @@ class ShadowPass(Pass):
         for rec in records:
             if rec["type"] == int(LightType.SUN):
                 L = rec["light"]
-                d = self._sun_dir(L, frame.sample)
+                d = self._sun_dir(L, frame.index)
                 for (vp, origin, texel, far) in self._cascades(rc, cam, d, center, radius, res):
                     views.append((rec["index"], vp, origin, 1, d, texel, far))
                 continue
-            origin = np.asarray(self._sample_origin(rec, scene, frame.sample, rng), np.float64)
+            origin, normal = self._sample_origin(rec, scene, frame.index, rng)
+            origin = np.asarray(origin, np.float64)
             far = float(np.linalg.norm(origin - center)) + radius * 1.01 + 1e-3
             near = max(1e-3, far * 1e-5)
             fov = math.radians(92.0)
@@ -166,7 +170,7 @@ class ShadowPass(Pass):
             texel = 2 * math.tan(fov / 2) / res
             for fwd, up in CUBE_DIRS:
                 vp = proj @ look_at(origin, fwd, up)
-                views.append((rec["index"], vp, origin, 0, np.zeros(3), texel, far))
+                views.append((rec["index"], vp, origin, 0, normal, texel, far))
         return views
 
     def _cascades(self, rc, cam, d, center, radius, res):
@@ -234,14 +238,15 @@ class ShadowPass(Pass):
                 return True
             if L.type == LightType.AREA or (L.type == LightType.SUN and L.angle > 1e-5):
                 return True
-        return bool(scene.lights and False) or bool(getattr(self, "_has_mesh", False))
+        return bool(getattr(self, "_has_mesh", False))
 
     def execute(self, rc, frame):
         import moderngl
 
         scene = rc.scene.scene
         self._has_mesh = bool(rc.scene.emitters.groups)
-        key = (rc.scene.version, frame.view.tobytes() if any(L.type == LightType.SUN for L in scene.lights) else b"")
+        key = (rc.scene.version, frame.view.tobytes() if any(L.type == LightType.SUN for L in scene.lights) else b"",
+               frame.index if self._dynamic(scene) else 0)
         if self._static_key == key and not self._dynamic(scene):
             return
         views = self._build_views(rc, frame)
@@ -251,7 +256,9 @@ class ShadowPass(Pass):
         light_views = {}
         prog = rc.programs.program("raster/shadow.vert", "raster/shadow.frag")
         self.fbo.use()
-        self.fbo.clear(1e30, 0, 0, 0, depth=1.0)
+        # empty texels read as occluded: a PCF footprint reaching past the edge of a closed
+        # room (zero-thickness walls) must not pick up "lit" from the void outside
+        self.fbo.clear(0.0, 0, 0, 0, depth=1.0)
         rc.ctx.enable(moderngl.DEPTH_TEST)
         rc.ctx.disable(moderngl.CULL_FACE)
         for vi, (li, vp, origin, is_ortho, d, texel, far) in enumerate(views):
@@ -259,7 +266,7 @@ class ShadowPass(Pass):
             rc.ctx.viewport = (cx * res, cy * res, res, res)
             set_uniform(prog, "u_view_proj", vp.astype(np.float32))
             set_uniform(prog, "u_origin", tuple(float(x) for x in origin))
-            set_uniform(prog, "u_dir", tuple(float(x) for x in d))
+            set_uniform(prog, "u_dir", tuple(float(x) for x in d) if is_ortho else (0.0, 0.0, 0.0))
             set_uniform(prog, "u_ortho", int(is_ortho))
             rc.scene.draw(prog)
             table[vi, 0:16] = vp.T.astype(np.float32).ravel()  # column-major mat4

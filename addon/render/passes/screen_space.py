@@ -1,0 +1,367 @@
+"""Passes shared by the screen-space family (SSAO, HBAO, SSDO, SSR).
+
+* ``ScreenPass``: base of every screen-space compute pass: binds the frame's camera
+  (the jittered view-projection the G-buffer was drawn with), the G-buffer and the scene
+  buffers; ``scale`` runs a pass at a fraction of the resolution.
+* ``HiZPass``: min device-depth pyramid (``ss.hiz``) for Hi-Z ray marching.
+* ``TemporalPass``: reprojection with ``gbuffer.motion``, disocclusion rejection by plane
+  distance and normal, running mean capped at ``max_history``; state in pass-owned
+  ping-pong textures, dropped by ``reset_history()``.
+* ``BilateralPass``: depth/normal-aware blur whose spatial extent shrinks with the
+  temporal history length.
+* ``AmbientStatsPass``: screen means (direct-lit radiance, diffuse albedo, enclosure) for
+  the AO techniques' constant indirect term.
+* ``CompositePass``: adds a technique's indirect light to ``color`` and writes its AO AOV.
+
+Every pass takes ``provides`` so that the chain of one technique is planned (and skipped,
+with the scene analysis' reason) as a whole. Shaders: ``shaders/screen_space/``.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..framegraph import Param, Pass
+from ..gpu_scene import set_uniform
+from .gbuffer import ALBEDO, GEONORMAL, MOTION, NORMAL, POSITION
+
+HIZ = "ss.hiz"
+DIRECT_RADIANCE = "aov.direct"  # reflected direct light (no emission), written by direct_light
+COLOR = "color"
+
+
+def camera_vectors(frame):
+    inv = np.linalg.inv(np.asarray(frame.view, np.float64))
+    pos = inv[:3, 3]
+    fwd = -inv[:3, 2]
+    return pos, fwd / max(np.linalg.norm(fwd), 1e-20)
+
+
+def bind_frame(rc, prog, frame, size=None):
+    """Camera, resolution, world and sample uniforms of lib/screen.glsl and common.glsl."""
+    vp = (np.asarray(frame.proj, np.float64) @ np.asarray(frame.view, np.float64)).astype(np.float32)
+    set_uniform(prog, "u_view_proj", vp)
+    set_uniform(prog, "u_view", np.asarray(frame.view, np.float32))
+    pos, fwd = camera_vectors(frame)
+    set_uniform(prog, "u_camera_pos", tuple(float(x) for x in pos))
+    set_uniform(prog, "u_camera_fwd", tuple(float(x) for x in fwd))
+    cam = rc.scene.scene.camera
+    set_uniform(prog, "u_ortho", 1 if cam is not None and cam.type == "ORTHO" else 0)
+    set_uniform(prog, "u_near", float(cam.clip_start) if cam is not None else 1e-3)
+    w, h = size or rc.size
+    set_uniform(prog, "u_resolution", (float(w), float(h)))
+    world = rc.scene.scene.world
+    set_uniform(prog, "u_world", tuple(float(x) for x in (world.color if world is not None else (0, 0, 0))))
+    set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
+
+
+class Units:
+    """Hands out texture units (0 is the scene's texture array)."""
+
+    def __init__(self, first: int = 1):
+        self.next = first
+
+    def tex(self, prog, uniform: str, tex):
+        u = self.next
+        self.next += 1
+        tex.use(u)
+        set_uniform(prog, uniform, u)
+        return u
+
+
+def bind_gbuffer(rc, prog, units: Units):
+    res = rc.resources
+    for name, uni in ((ALBEDO, "u_gb_albedo"), (NORMAL, "u_gb_normal"), (POSITION, "u_gb_position"),
+                      (GEONORMAL, "u_gb_geonormal"), (MOTION, "u_gb_motion")):
+        if name in res:
+            units.tex(prog, uni, res[name])
+
+
+def scaled(size, scale: float) -> tuple[int, int]:
+    return (max(1, int(math.ceil(size[0] * scale))), max(1, int(math.ceil(size[1] * scale))))
+
+
+class ScreenPass(Pass):
+    """A compute pass of the family. ``provides`` is given per technique."""
+
+    def __init__(self, quality=None, *, provides=frozenset(), name=None, **props):
+        super().__init__(quality, **props)
+        self.provides = frozenset(provides)
+        if name:
+            self.name = name
+
+    def program(self, rc, shader: str, defines=None):
+        prog = rc.programs.compute(shader, defines)
+        rc.scene.bind(prog)
+        return prog
+
+    @staticmethod
+    def groups(size, local=8):
+        return (size[0] + local - 1) // local, (size[1] + local - 1) // local
+
+    @staticmethod
+    def run(rc, prog, size=None):
+        """Dispatch over ``size`` (default: the frame) and make the writes visible."""
+        gx, gy = ScreenPass.groups(size or rc.size)
+        rc.dispatch(prog, gx, gy)
+        rc.ctx.memory_barrier()
+
+
+# ---------------------------------------------------------------- Hi-Z
+class HiZPass(ScreenPass):
+    """Min pyramid of device depth: level 0 from the G-buffer, then 2x2 (3x3 at odd edges)."""
+
+    name = "ss_hiz"
+    reads = (POSITION,)
+    writes = (HIZ,)
+
+    def __init__(self, quality=None, **kw):
+        super().__init__(quality, **kw)
+        self.tex = None
+
+    def compile(self, rc):
+        import moderngl
+
+        if self.tex is not None:
+            self.tex.release()
+        w, h = rc.size
+        self.levels = int(math.floor(math.log2(max(w, h)))) + 1
+        self.tex = rc.ctx.texture((w, h), 1, dtype="f4")
+        self.tex.build_mipmaps(0, self.levels - 1)  # allocates every level
+        self.tex.filter = (moderngl.NEAREST_MIPMAP_NEAREST, moderngl.NEAREST)
+        self.tex.repeat_x = self.tex.repeat_y = False
+        rc.resources[HIZ] = self.tex
+
+    def execute(self, rc, frame):
+        rc.resources[HIZ] = self.tex
+        init = rc.programs.compute("screen_space/hiz.comp", {"HIZ_INIT": 1})
+        bind_frame(rc, init, frame)
+        rc.resources[POSITION].use(1)
+        set_uniform(init, "u_gb_position", 1)
+        self.tex.bind_to_image(1, read=False, write=True, level=0)
+        self.run(rc, init)
+        red = rc.programs.compute("screen_space/hiz.comp")
+        w, h = rc.size
+        for lv in range(1, self.levels):
+            lw, lh = max(1, w >> lv), max(1, h >> lv)
+            self.tex.bind_to_image(0, read=True, write=False, level=lv - 1)
+            self.tex.bind_to_image(1, read=False, write=True, level=lv)
+            self.run(rc, red, (lw, lh))
+
+    def release(self):
+        if self.tex is not None:
+            self.tex.release()
+            self.tex = None
+
+
+# ---------------------------------------------------------------- temporal
+class TemporalPass(ScreenPass):
+    """Shared temporal accumulation: ``source`` (any resolution) -> ``output`` (full)."""
+
+    params = (
+        Param("max_history", 32, 1, 1024, "frames averaged at most while the camera is still"),
+        Param("max_history_moving", 8, 1, 1024, "frames averaged at most while the camera moves"),
+    )
+
+    def __init__(self, quality=None, *, source: str, output: str, background=(1.0, 1.0, 1.0, 1.0), **kw):
+        super().__init__(quality, **kw)
+        self.source, self.output = source, output
+        self.len_name = output + ".len"
+        self.reads = (source, POSITION, NORMAL, MOTION)
+        self.writes = (output, self.len_name)
+        self.history = (output,)
+        self.background = tuple(float(x) for x in background)
+        self.hist = None
+        self.cur = 0
+        self.prev_vp = None
+
+    def compile(self, rc):
+        self.release()
+        size = rc.size
+        self.hist = [{"out": rc.ctx.texture(size, 4, dtype="f4"), "pos": rc.ctx.texture(size, 4, dtype="f4"),
+                      "nrm": rc.ctx.texture(size, 4, dtype="f2")} for _ in range(2)]
+        for d in self.hist:
+            for t in d.values():
+                import moderngl
+
+                t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+                t.repeat_x = t.repeat_y = False
+        rc.texture(self.len_name, 1, "f4")
+        self.history_valid = False
+
+    def execute(self, rc, frame):
+        if self.hist is None or self.hist[0]["out"].size != rc.size:
+            self.compile(rc)
+        prog = rc.programs.compute("screen_space/temporal.comp")
+        bind_frame(rc, prog, frame)
+        prev, cur = self.hist[self.cur], self.hist[1 - self.cur]
+        units = Units(1)
+        res = rc.resources
+        units.tex(prog, "u_current", res[self.source])
+        units.tex(prog, "u_hist", prev["out"])
+        units.tex(prog, "u_hist_pos", prev["pos"])
+        units.tex(prog, "u_hist_nrm", prev["nrm"])
+        bind_gbuffer(rc, prog, units)
+        vp = (np.asarray(frame.proj_unjittered if frame.proj_unjittered is not None else frame.proj, np.float64)
+              @ np.asarray(frame.view, np.float64))
+        moving = self.prev_vp is not None and not np.allclose(vp, self.prev_vp, atol=1e-6)
+        self.prev_vp = vp
+        set_uniform(prog, "u_reset", 0 if self.history_valid else 1)
+        set_uniform(prog, "u_max_history", float(self["max_history_moving"] if moving else self["max_history"]))
+        set_uniform(prog, "u_background", self.background)
+        cur["out"].bind_to_image(0, read=False, write=True)
+        res[self.len_name].bind_to_image(1, read=False, write=True)
+        cur["pos"].bind_to_image(2, read=False, write=True)
+        cur["nrm"].bind_to_image(3, read=False, write=True)
+        self.run(rc, prog)
+        res[self.output] = cur["out"]
+        self.cur = 1 - self.cur
+        self.history_valid = True
+
+    def reset_history(self):
+        super().reset_history()
+        self.prev_vp = None
+
+    def release(self):
+        for d in self.hist or ():
+            for t in d.values():
+                t.release()
+        self.hist = None
+
+
+# ---------------------------------------------------------------- bilateral blur
+class BilateralPass(ScreenPass):
+    params = (
+        Param("blur_radius", 2, 0, 8, "kernel radius in pixels (0 = off)"),
+        Param("normal_power", 16.0, 0.0, 128.0, "normal edge sharpness"),
+        Param("depth_sigma", 1.0, 0.05, 16.0, "depth edge tolerance in pixels of plane distance"),
+    )
+
+    def __init__(self, quality=None, *, source: str, output: str, length: str, **kw):
+        super().__init__(quality, **kw)
+        self.source, self.output, self.length = source, output, length
+        self.reads = (source, length, POSITION, NORMAL)
+        self.writes = (output,)
+
+    def compile(self, rc):
+        rc.texture(self.output, 4, "f4")
+
+    def execute(self, rc, frame):
+        prog = rc.programs.compute("screen_space/bilateral.comp")
+        bind_frame(rc, prog, frame)
+        units = Units(1)
+        res = rc.resources
+        units.tex(prog, "u_src", res[self.source])
+        units.tex(prog, "u_len", res[self.length])
+        bind_gbuffer(rc, prog, units)
+        set_uniform(prog, "u_radius_px", int(self["blur_radius"]))
+        set_uniform(prog, "u_normal_power", float(self["normal_power"]))
+        set_uniform(prog, "u_depth_sigma", float(self["depth_sigma"]))
+        rc.texture(self.output, 4, "f4").bind_to_image(0, read=False, write=True)
+        self.run(rc, prog)
+
+
+# ---------------------------------------------------------------- ambient statistics
+STATS0, STATS1 = "ss.stats0", "ss.stats1"
+
+
+class AmbientStatsPass(ScreenPass):
+    """Screen means for the constant indirect term (reduced with the GL mipmap chain)."""
+
+    name = "ss_ambient_stats"
+
+    def __init__(self, quality=None, *, ao: str, **kw):
+        super().__init__(quality, **kw)
+        self.ao = ao
+        self.reads = (ao, DIRECT_RADIANCE, ALBEDO, NORMAL, POSITION)
+        self.writes = (STATS0, STATS1)
+        self.tex = None
+
+    def compile(self, rc):
+        self.release()
+        self.tex = [rc.ctx.texture(rc.size, 4, dtype="f4") for _ in range(2)]
+        for t in self.tex:
+            t.build_mipmaps()
+        self.lod = float(int(math.floor(math.log2(max(rc.size)))))
+
+    def execute(self, rc, frame):
+        if self.tex is None or self.tex[0].size != rc.size:
+            self.compile(rc)
+        prog = self.program(rc, "screen_space/stats.comp")
+        bind_frame(rc, prog, frame)
+        units = Units(1)
+        units.tex(prog, "u_radiance", rc.resources[DIRECT_RADIANCE])
+        units.tex(prog, "u_ao", rc.resources[self.ao])
+        bind_gbuffer(rc, prog, units)
+        self.tex[0].bind_to_image(0, read=False, write=True)
+        self.tex[1].bind_to_image(1, read=False, write=True)
+        self.run(rc, prog)
+        for t in self.tex:
+            t.build_mipmaps()
+        rc.resources[STATS0], rc.resources[STATS1] = self.tex
+
+    def release(self):
+        for t in self.tex or ():
+            t.release()
+        self.tex = None
+
+
+# ---------------------------------------------------------------- composite
+class CompositePass(ScreenPass):
+    """color += the technique's indirect light (see composite.comp for each mode)."""
+
+    params = (
+        Param("ambient_bounces", 1, 0, 8, "AO modes: bounces of the constant indirect term (0 = world only)"),
+    )
+
+    def __init__(self, quality=None, *, mode: str, signal: str, ao_output: str | None = None, **kw):
+        super().__init__(quality, **kw)
+        self.mode, self.signal, self.ao_output = mode, signal, ao_output
+        reads = [signal, COLOR, ALBEDO, NORMAL, POSITION, GEONORMAL]
+        if mode == "AO":
+            reads += [STATS0, STATS1]
+        self.reads = tuple(reads)
+        self.writes = (COLOR,) + ((ao_output,) if ao_output else ())
+
+    def compile(self, rc):
+        if self.ao_output:
+            rc.texture(self.ao_output, 4, "f4")
+
+    def execute(self, rc, frame):
+        prog = self.program(rc, "screen_space/composite.comp", {f"MODE_{self.mode}": 1})
+        bind_frame(rc, prog, frame)
+        units = Units(1)
+        res = rc.resources
+        units.tex(prog, "u_signal", res[self.signal])
+        if self.mode == "AO":
+            units.tex(prog, "u_stats0", res[STATS0])
+            units.tex(prog, "u_stats1", res[STATS1])
+            set_uniform(prog, "u_stats_lod", float(int(math.floor(math.log2(max(rc.size))))))
+            set_uniform(prog, "u_ambient_bounces", int(self["ambient_bounces"]))
+        bind_gbuffer(rc, prog, units)
+        res[COLOR].bind_to_image(0, read=True, write=True)
+        if self.ao_output:
+            rc.texture(self.ao_output, 4, "f4").bind_to_image(1, read=False, write=True)
+        self.run(rc, prog)
+
+
+# ---------------------------------------------------------------- chains
+def ao_chain(prefix: str, raw_pass: Pass, quality, provides, *, mode: str = "AO", blur=None,
+             temporal=None, composite=None) -> list:
+    """raw (any scale) -> temporal -> bilateral -> [ambient stats] -> composite.
+
+    Resources: ``<prefix>.raw`` (raw_pass writes it), ``<prefix>.temporal``, ``<prefix>.ao``
+    (filtered signal), ``<prefix>.aov`` (the AO effect image, background 1)."""
+    bg = (1.0, 1.0, 1.0, 1.0) if mode == "AO" else (0.0, 0.0, 0.0, 1.0)
+    chain = [raw_pass,
+             TemporalPass(quality, name=f"{prefix}_temporal", source=f"{prefix}.raw",
+                          output=f"{prefix}.temporal", background=bg, provides=provides, **(temporal or {})),
+             BilateralPass(quality, name=f"{prefix}_blur", source=f"{prefix}.temporal", output=f"{prefix}.ao",
+                           length=f"{prefix}.temporal.len", provides=provides, **(blur or {}))]
+    if mode == "AO":
+        chain.append(AmbientStatsPass(quality, name=f"{prefix}_ambient_stats", ao=f"{prefix}.ao",
+                                      provides=provides))
+    chain.append(CompositePass(quality, name=f"{prefix}_composite", mode=mode, signal=f"{prefix}.ao",
+                               ao_output=f"{prefix}.aov", provides=provides, **(composite or {})))
+    return chain

@@ -1,0 +1,137 @@
+"""SSR: screen-space reflections on a Hi-Z pyramid (McGuire & Mara 2014; Uludag 2014;
+Stachowiak 2015).
+
+Passes: DIRECT's three → ``ss_hiz`` (min device-depth pyramid) → ``ssr_trace`` (one GGX
+visible-normal sampled ray per pixel at ``scale``, Hi-Z traversal, ``thickness``, edge
+fade, rays leaving the screen miss) → ``ssr_resolve`` (ratio estimator over
+``resolve_samples`` neighbouring rays, radius growing with roughness; misses and surfaces
+rougher than ``max_roughness`` fall back to the world colour) → ``ssr_temporal`` →
+``ssr_composite`` (``color += spec_albedo * resolved radiance``). Radiance at a hit is the
+direct-lit colour without emission (one bounce; emitters' glossy reflection is DIRECT's).
+All SSR passes provide INDIRECT_SPECULAR: the planner skips them, saying "no glossy
+surface in view", on a scene without one. Compared with Cycles "one_bounce".
+See docs/techniques/SSR.md.
+
+| parameter | range | meaning |
+|---|---|---|
+| steps | 8–1024 | Hi-Z traversal iterations per ray |
+| thickness | 0.001–10 | assumed thickness of the depth buffer (scene units) |
+| max_distance | 0.1–1000 | ray length (scene units) |
+| max_roughness | 0–1 | rougher surfaces use the fallback only |
+| edge_fade | 0–0.5 | screen fraction over which hits fade at the border |
+| resolve_samples | 1–16 | neighbour rays reused per pixel |
+| scale | 0.25–1 | resolution scale of the trace |
+
+Quality ladder (steps, resolve, scale): 0 = 32, 4, 0.5; 1 = 64, 6, 1; 2 = 128, 8, 1; 3 = 256, 12, 1.
+"""
+from __future__ import annotations
+
+from ..framegraph import Effect, Param
+from ..gpu_scene import set_uniform
+from ..passes.gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION, GBufferPass
+from ..passes.screen_space import (DIRECT_RADIANCE, HIZ, CompositePass, HiZPass, ScreenPass, TemporalPass,
+                                   Units, bind_frame, bind_gbuffer, scaled)
+from ..passes.shadows import ShadowPass
+from . import Technique, register
+from .direct import DirectLightPass
+
+SSR_PROVIDES = frozenset({Effect.INDIRECT_SPECULAR})
+RAY0, RAY1, RESOLVED = "ssr.ray0", "ssr.ray1", "ssr.raw"
+
+
+class SSRTracePass(ScreenPass):
+    name = "ssr_trace"
+    params = (
+        Param("steps", 64, 8, 1024, "Hi-Z traversal iterations per ray"),
+        Param("thickness", 0.15, 0.001, 10.0, "depth-buffer thickness (scene units)"),
+        Param("max_distance", 20.0, 0.1, 1000.0, "ray length (scene units)"),
+        Param("max_roughness", 0.7, 0.0, 1.0, "rougher surfaces use the fallback"),
+        Param("edge_fade", 0.08, 0.0, 0.5, "screen fraction over which hits fade at the border"),
+        Param("bias", 0.005, 0.0, 1.0, "ray origin offset along the geometric normal"),
+        Param("scale", 1.0, 0.25, 1.0, "resolution scale of the trace"),
+    )
+    quality_ladder = ({"steps": 32, "scale": 0.5}, {"steps": 64, "scale": 1.0},
+                      {"steps": 128, "scale": 1.0}, {"steps": 256, "scale": 1.0})
+    reads = (ALBEDO, NORMAL, POSITION, GEONORMAL, HIZ)
+    writes = (RAY0, RAY1)
+
+    def size(self, rc):
+        return scaled(rc.size, float(self["scale"]))
+
+    def compile(self, rc):
+        rc.texture(RAY0, 4, "f4", size=self.size(rc))
+        rc.texture(RAY1, 4, "f4", size=self.size(rc))
+
+    def execute(self, rc, frame):
+        prog = self.program(rc, "screen_space/ssr_trace.comp")
+        bind_frame(rc, prog, frame)
+        units = Units(1)
+        bind_gbuffer(rc, prog, units)
+        hiz = rc.resources[HIZ]
+        units.tex(prog, "u_hiz", hiz)
+        set_uniform(prog, "u_hiz_levels", _levels(rc.size))
+        for k, u in (("steps", "u_steps"),):
+            set_uniform(prog, u, int(self[k]))
+        for k, u in (("thickness", "u_thickness"), ("max_distance", "u_max_distance"),
+                     ("max_roughness", "u_max_roughness"), ("edge_fade", "u_edge_fade"), ("bias", "u_bias")):
+            set_uniform(prog, u, float(self[k]))
+        size = self.size(rc)
+        rc.texture(RAY0, 4, "f4", size=size).bind_to_image(0, read=False, write=True)
+        rc.texture(RAY1, 4, "f4", size=size).bind_to_image(1, read=False, write=True)
+        self.run(rc, prog, size)
+
+
+def _levels(size) -> int:
+    import math
+
+    return int(math.floor(math.log2(max(size)))) + 1
+
+
+class SSRResolvePass(ScreenPass):
+    name = "ssr_resolve"
+    params = (
+        Param("resolve_samples", 6, 1, 16, "neighbour rays reused per pixel"),
+        Param("max_roughness", 0.7, 0.0, 1.0, "rougher surfaces use the fallback"),
+    )
+    quality_ladder = ({"resolve_samples": 4}, {"resolve_samples": 6}, {"resolve_samples": 8},
+                      {"resolve_samples": 12})
+    reads = (RAY0, RAY1, DIRECT_RADIANCE, ALBEDO, NORMAL, POSITION, GEONORMAL)
+    writes = (RESOLVED,)
+
+    def compile(self, rc):
+        rc.texture(RESOLVED, 4, "f2")
+
+    def execute(self, rc, frame):
+        prog = self.program(rc, "screen_space/ssr_resolve.comp")
+        bind_frame(rc, prog, frame)
+        units = Units(1)
+        bind_gbuffer(rc, prog, units)
+        res = rc.resources
+        units.tex(prog, "u_ray0", res[RAY0])
+        units.tex(prog, "u_ray1", res[RAY1])
+        units.tex(prog, "u_radiance", res[DIRECT_RADIANCE])
+        set_uniform(prog, "u_resolve_samples", int(self["resolve_samples"]))
+        set_uniform(prog, "u_max_roughness", float(self["max_roughness"]))
+        rc.texture(RESOLVED, 4, "f2").bind_to_image(0, read=False, write=True)
+        self.run(rc, prog)
+
+
+@register
+class SSR(Technique):
+    id = "SSR"
+    label = "SSR (Hi-Z)"
+    description = "Screen-space glossy reflections: Hi-Z ray marching, GGX importance sampling, ratio resolve"
+    family = "screen_space"
+    reference = "one_bounce"
+    cost_rank = 20
+    outputs = {"GI_Direct": "aov.direct"}
+
+    def passes(self, quality):
+        p = SSR_PROVIDES
+        trace = SSRTracePass(quality, provides=p)
+        resolve = SSRResolvePass(quality, provides=p, max_roughness=trace["max_roughness"])
+        return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality),
+                HiZPass(quality, provides=p), trace, resolve,
+                TemporalPass(quality, name="ssr_temporal", source=RESOLVED, output="ssr.temporal",
+                             background=(0.0, 0.0, 0.0, 1.0), provides=p, max_history=16),
+                CompositePass(quality, name="ssr_composite", mode="SSR", signal="ssr.temporal", provides=p)]

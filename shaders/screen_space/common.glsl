@@ -1,0 +1,62 @@
+// common.glsl (screen_space) — what every screen-space pass of the family shares:
+// G-buffer samplers and fetches, the diffuse/specular split of the Principled subset
+// (diffuse albedo under the specular layer, split-sum specular albedo), and per-pixel
+// rotation noise. Include after lib/common.glsl (with USE_SCENE_BUFFERS), lib/rng.glsl,
+// lib/sampling.glsl, lib/brdf.glsl and lib/screen.glsl.
+#ifndef GI_SS_COMMON_GLSL
+#define GI_SS_COMMON_GLSL
+
+uniform sampler2D u_gb_albedo;
+uniform sampler2D u_gb_normal;     // w = roughness
+uniform sampler2D u_gb_position;   // w = material id, < 0 background
+uniform sampler2D u_gb_geonormal;  // w = metallic
+uniform vec3 u_world;              // uniform world radiance
+uniform uint u_sample;
+
+struct GPixel {
+    bool valid;
+    vec3 P;
+    vec3 N;
+    vec3 Ng;
+    int mid;
+};
+
+GPixel fetch_g(ivec2 px) {
+    GPixel g;
+    px = clamp(px, ivec2(0), ivec2(u_resolution) - 1);
+    vec4 pos = texelFetch(u_gb_position, px, 0);
+    g.valid = pos.w >= 0.0;
+    g.P = pos.xyz;
+    g.mid = int(pos.w + 0.5);
+    g.N = normalize(texelFetch(u_gb_normal, px, 0).xyz + vec3(0.0, 0.0, 1e-12));
+    g.Ng = normalize(texelFetch(u_gb_geonormal, px, 0).xyz + vec3(0.0, 0.0, 1e-12));
+    return g;
+}
+
+#ifdef USE_SCENE_BUFFERS
+Surface fetch_surface(ivec2 px, int mid) {
+    return make_surface(materials[mid], texelFetch(u_gb_albedo, px, 0).rgb);
+}
+
+// Lambertian reflectance under the dielectric layer (what the diffuse lobe integrates to).
+vec3 diffuse_albedo(Surface s, float NoV) {
+    return (1.0 - s.metallic) * s.base_color * (1.0 - dielectric_layer_albedo(s, NoV));
+}
+
+// Directional albedo of the glossy lobe (split-sum, with multiple-scattering compensation).
+vec3 specular_albedo(Surface s, float NoV) {
+    vec2 ab = ggx_albedo_fit(NoV, s.roughness);
+    float ess = max(ab.x + ab.y, 1e-3);
+    vec3 metal = (s.base_color * ab.x + ab.y) * (1.0 + s.base_color * (1.0 - ess) / ess);
+    vec3 diel = s.spec_tint * dielectric_layer_albedo(s, NoV);
+    return clamp(mix(diel, metal, s.metallic), 0.0, 1.0);
+}
+#endif
+
+// Per-pixel, per-frame random numbers (the rotation of the kernels).
+vec4 pixel_noise(ivec2 px, uint stream) {
+    Rng r = rng_init(uvec2(px), u_sample, stream);
+    return rng_next4(r);
+}
+
+#endif

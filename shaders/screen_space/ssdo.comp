@@ -1,0 +1,72 @@
+// ssdo.comp — SSDO: screen-space directional occlusion with one indirect bounce.
+// Paper: Ritschel, Grosch & Seidel 2009 ("Approximating dynamic global illumination in
+// image space").
+// For u_samples cosine-distributed directions around the normal (rotated per pixel and
+// frame), a point at a random distance within the radius is projected to the screen.
+// Not occluded (in front of the G-buffer surface there): the direction sees the
+// environment, here the uniform world radiance (directional occlusion of the world light).
+// Occluded: the G-buffer pixel that hides the point is a small sender; its radiance is
+// the direct-lit colour buffer (aov.direct: reflected direct light, without emission,
+// which DIRECT already counts), received if the sender faces the receiver. The estimator
+// is the cosine-weighted mean of incident radiance, so the diffuse bounce is
+// albedo_d * mean(L_in): bounded by the brightest on-screen sender.
+// Output (at u_scale of the full resolution): rgb = mean sender radiance over all samples,
+// a = cosine-weighted fraction of unblocked directions (the world's visibility).
+#define USE_SCENE_BUFFERS
+#include "lib/common.glsl"
+#include "lib/rng.glsl"
+#include "lib/sampling.glsl"
+#include "lib/brdf.glsl"
+#include "lib/screen.glsl"
+#include "screen_space/common.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(binding = 0, rgba16f) uniform writeonly image2D o_ssdo;
+
+uniform sampler2D u_radiance;  // direct-lit colour (aov.direct)
+uniform int u_samples;
+uniform float u_radius;
+uniform float u_bias;
+
+void main() {
+    ivec2 q = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 osize = imageSize(o_ssdo);
+    if (any(greaterThanEqual(q, osize))) return;
+    ivec2 px = ivec2((vec2(q) + 0.5) * u_resolution / vec2(osize));
+    GPixel g = fetch_g(px);
+    if (!g.valid) { imageStore(o_ssdo, q, vec4(0.0, 0.0, 0.0, 1.0)); return; }
+    vec3 N = g.N;
+    vec3 O = g.P + g.Ng * u_bias;
+    float d0 = view_depth(g.P);
+    vec4 rnd = pixel_noise(px, 13u);
+    float rot = TWO_PI * rnd.x;
+    float cr = cos(rot), sr = sin(rot);
+    vec3 bounce = vec3(0.0);
+    float open = 0.0;
+    int n = max(u_samples, 1);
+    for (int i = 0; i < n; ++i) {
+        float u1 = (float(i) + rnd.y) / float(n);
+        float phi = float(i) * 2.39996323;
+        vec2 dsk = sqrt(u1) * vec2(cos(phi), sin(phi));
+        dsk = vec2(cr * dsk.x - sr * dsk.y, sr * dsk.x + cr * dsk.y);
+        vec3 dir = to_world(vec3(dsk, sqrt(max(0.0, 1.0 - dot(dsk, dsk)))), N);
+        float s = fract(float(i) * 0.618034 + rnd.z);
+        vec3 S = O + dir * (u_radius * mix(0.1, 1.0, s));
+        vec2 sp = to_pixel(S);
+        if (!on_screen(sp)) { open += 1.0; continue; }
+        ivec2 hp = ivec2(sp);
+        GPixel h = fetch_g(hp);
+        if (!h.valid) { open += 1.0; continue; }
+        float ds = view_depth(S);
+        float dh = view_depth(h.P);
+        if (dh < ds - u_bias && abs(d0 - dh) < u_radius) {
+            // blocked: the hiding pixel sends its direct-lit radiance if it faces P
+            vec3 toP = g.P - h.P;
+            float facing = dot(h.N, toP) > 0.0 ? 1.0 : 0.0;
+            bounce += facing * texelFetch(u_radiance, hp, 0).rgb;
+        } else {
+            open += 1.0;
+        }
+    }
+    imageStore(o_ssdo, q, vec4(sanitize(bounce / float(n)), open / float(n)));
+}
