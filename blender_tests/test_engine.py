@@ -276,3 +276,33 @@ def test_cancel_event_from_another_thread():
         assert res.cancelled and 0 < res.samples < 100000
     finally:
         bpy.data.scenes.remove(sc)
+
+
+def test_blender_panels_show_for_the_engine():
+    """Dimensions, output, colour management, light, material, world, camera panels."""
+    from gi_preview.blender import ui
+
+    for name in ("RENDER_PT_format", "RENDER_PT_output", "RENDER_PT_frame_range", "RENDER_PT_color_management",
+                 "DATA_PT_EEVEE_light", "DATA_PT_spot", "EEVEE_MATERIAL_PT_surface", "EEVEE_WORLD_PT_surface",
+                 "DATA_PT_lens", "DATA_PT_camera", "VIEWLAYER_PT_layer_passes"):
+        assert "GI_PREVIEW" in getattr(bpy.types, name).COMPAT_ENGINES, name
+    for name in ui.EXTRA_PANELS:
+        assert hasattr(bpy.types, name), f"{name} does not exist in this Blender"
+    assert "GI_PREVIEW" in ui.GIPREVIEW_RENDER_PT_technique.COMPAT_ENGINES
+
+
+def test_settings_contract():
+    """scene.gi_preview: technique ids from TECHNIQUES.md plus AUTO, samples, quality."""
+    sc = bpy.data.scenes.new("contract")
+    try:
+        s = sc.gi_preview
+        ids = {i.identifier for i in s.bl_rna.properties["technique"].enum_items}
+        assert {"AUTO", "DIRECT", "PT"} <= ids
+        s.technique = "DIRECT"
+        s.samples = 7
+        s.quality = 3
+        assert (s.technique, s.samples, s.quality) == ("DIRECT", 7, 3)
+        with pytest.raises(TypeError):
+            s.technique = "NOT_A_TECHNIQUE"
+    finally:
+        bpy.data.scenes.remove(sc)

@@ -7,16 +7,12 @@ from ..render import techniques
 
 AUTO_ITEM = ("AUTO", "Auto", "The planner picks the cheapest technique that covers what the scene needs")
 
-# Enum items are built once (Blender keeps references to the strings).
-_ITEMS: list = []
 
 
-def technique_items(self=None, context=None):
-    if not _ITEMS:
-        _ITEMS.append(AUTO_ITEM)
-        for info in techniques.available():
-            _ITEMS.append((info.id, info.label, info.description))
-    return _ITEMS
+def technique_items() -> list:
+    """AUTO plus every registered technique, as static enum items (introspectable by
+    scripts through ``bl_rna``); built when the add-on registers."""
+    return [AUTO_ITEM] + [(i.id, i.label, i.description) for i in techniques.available()]
 
 
 def _update(self, context):
@@ -28,7 +24,7 @@ def _update(self, context):
 
 class GIPreviewSceneSettings(bpy.types.PropertyGroup):
     technique: bpy.props.EnumProperty(
-        name="Technique", items=technique_items, update=_update,
+        name="Technique", items=technique_items(), default="AUTO", update=_update,
         description="Global-illumination technique GI Preview renders with")
     samples: bpy.props.IntProperty(
         name="Samples", default=16, min=1, max=65536, soft_max=1024,

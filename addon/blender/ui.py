@@ -12,8 +12,7 @@ ENGINE = "GI_PREVIEW"
 EXTRA_PANELS = (
     "EEVEE_MATERIAL_PT_surface", "EEVEE_MATERIAL_PT_context_material", "EEVEE_MATERIAL_PT_settings",
     "EEVEE_WORLD_PT_surface", "DATA_PT_EEVEE_light", "DATA_PT_light", "DATA_PT_EEVEE_light_distance",
-    "DATA_PT_area", "DATA_PT_spot", "DATA_PT_context_light",
-    "RENDER_PT_color_management", "RENDER_PT_color_management_curve", "RENDER_PT_color_management_display_settings",
+    "DATA_PT_spot", "DATA_PT_context_light", "RENDER_PT_color_management",
     "DATA_PT_lens", "DATA_PT_camera", "DATA_PT_camera_dof", "DATA_PT_context_camera",
     "RENDER_PT_format", "RENDER_PT_frame_range", "RENDER_PT_output", "RENDER_PT_encoding",
     "VIEWLAYER_PT_layer_passes",
