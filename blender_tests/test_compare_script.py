@@ -8,6 +8,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 REPO = Path(__file__).resolve().parent.parent
@@ -74,11 +75,10 @@ def test_gi_compare_cornell(tmp_path):
 def test_compare_operator(tmp_path, monkeypatch):
     bpy = pytest.importorskip("bpy")
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    import gi_preview
     from gi_preview.blender import compare_ops, demo_scenes
-    for c in compare_ops.classes:
-        if not hasattr(bpy.types, c.__name__):
-            bpy.utils.register_class(c)
-    compare_ops.register_props()
+    from gi_preview.compare import imageio
+    gi_preview.register()
     sc = demo_scenes.build_demo("cornell", resolution=32)
     try:
         with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
@@ -91,5 +91,20 @@ def test_compare_operator(tmp_path, monkeypatch):
         stored = compare_ops.load_results(sc)
         tech = sc.gi_preview_comparison.last_technique
         assert tech in stored and _finite(stored[tech]["relmse"]) and _finite(stored[tech]["flip"])
+        # render slots 1-3 hold GI Preview, Cycles and the error map (J flips between them)
+        rr = bpy.data.images["Render Result"]
+        assert [rr.render_slots[i].name for i in range(3)] == list(compare_ops.SLOT_LABELS)
+        s = sc.render.image_settings
+        s.media_type, s.file_format, s.color_depth = "IMAGE", "OPEN_EXR", "32"
+        expected = [np.array(bpy.data.images[n].pixels[:], np.float32).reshape(32, 32, 4)
+                    for n in (compare_ops.IMG_RESULT, compare_ops.IMG_CYCLES)]
+        for i, exp in enumerate(expected):
+            rr.render_slots.active_index = i
+            path = str(tmp_path / f"slot{i}.exr")
+            rr.save_render(path, scene=sc)
+            got = imageio.read_exr(path)
+            assert np.allclose(got[..., :3], exp[..., :3], atol=1e-3), f"slot {i + 1}"
+        assert sc.render.engine == "GI_PREVIEW"
     finally:
         bpy.data.scenes.remove(sc)
+        gi_preview.unregister()

@@ -11,13 +11,14 @@ reference, see ``reference.py``), measures the difference and shows it as images
                               transform changes its colours
 * "GI Preview: side by side"  left half GI Preview, right half Cycles, a 1-px white seam
 
-Why images and not the Render Result's slots 1-3: ``bpy.types.RenderSlots`` exposes only
-``active``/``active_index``/``new()`` and a ``RenderSlot`` only ``name``/``clear()``; a slot's
-pixels cannot be written from Python, and ``Image.pixels`` of the Render Result is empty
-(BLENDER_NOTES.md). Writing into slots would mean re-running each render through the engine
-into a chosen slot, which would also re-render Cycles at every compare. Plain images are
-inspectable in any Image Editor, persist with the file if the user wants, and are replaced
-(not duplicated) by the next compare.
+Render slots: the three images also go into the Render Result's slots 1, 2, 3 (named "GI
+Preview", "Cycles", "Error map"), so an artist flips between them with J in the Image Editor.
+A slot's pixels cannot be written from Python (``RenderSlot`` has only ``name``/``clear()``),
+so ``fill_render_slots`` runs one render per slot through the GI Preview engine, which
+presents a queued ready image instead of rendering (``engine.display_queue``): nothing is
+rendered twice. The error map is written linearised, so with the "Standard" view transform
+it shows the heat map's exact colours; the "GI Preview: error" image keeps them under any
+view transform.
 
 The metrics of the last compare per technique are kept on the scene as JSON in
 ``scene.gi_preview_comparison.results_json`` (PropertyGroup ``GIPreviewComparison``, attached
@@ -91,6 +92,40 @@ def side_by_side(ours: np.ndarray, ref: np.ndarray) -> np.ndarray:
     out[:, half:half + 1, :3] = 1.0
     out[..., 3] = 1.0
     return out
+
+
+SLOT_LABELS = ("GI Preview", "Cycles", "Error map")
+
+
+def fill_render_slots(scene, images: list) -> bool:
+    """Put (label, linear RGBA) images into the Render Result's slots 1, 2, 3 (J flips
+    between them). Renders through the GI Preview engine's display queue, so nothing is
+    rendered twice; the scene's engine is set to GI_PREVIEW for the calls and restored."""
+    from . import engine as engine_mod
+
+    old_engine = scene.render.engine
+    try:
+        scene.render.engine = "GI_PREVIEW"
+        for i, (label, img) in enumerate(images):
+            rr = bpy.data.images.get("Render Result")
+            if rr is not None and len(rr.render_slots) > i:
+                rr.render_slots.active_index = i
+            engine_mod.display_queue[:] = [(label, img)]
+            bpy.ops.render.render(scene=scene.name)
+            rr = bpy.data.images.get("Render Result")
+            if rr is not None and len(rr.render_slots) > i:
+                rr.render_slots[i].name = label
+        rr = bpy.data.images.get("Render Result")
+        if rr is not None:
+            rr.render_slots.active_index = 0
+        return True
+    finally:
+        engine_mod.display_queue.clear()
+        scene.render.engine = old_engine
+
+
+def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
 def load_results(scene) -> dict:
@@ -206,16 +241,22 @@ class GIPREVIEW_OT_compare(bpy.types.Operator):
                      "time": time.strftime("%Y-%m-%d %H:%M:%S")}
             store_results(scene, tech, entry)
             st["entry"] = entry
+            st["slots"] = [(SLOT_LABELS[0], img), (SLOT_LABELS[1], np.asarray(ref.image, np.float32)),
+                           (SLOT_LABELS[2], np.concatenate([_srgb_to_linear(heat), heat4[..., 3:]], axis=2))]
+
+        def slots():
+            fill_render_slots(scene, st["slots"])
 
         return [("Rendering GI Preview", render_ours), ("Rendering Cycles reference", render_ref),
-                ("Measuring", measure)]
+                ("Measuring", measure), ("Filling render slots", slots)]
 
     def _report_done(self):
         e = self._state["entry"]
         self.report({"INFO"}, f"{e['technique']} q{e['quality']} vs Cycles {e['reference']} "
                               f"({e['ref_spp']} spp{', cached' if e['ref_cached'] else ''}): "
                               f"relMSE {e['relmse']:.4g}, FLIP {e['flip']:.4g}, SSIM {e['ssim']:.4f}, "
-                              f"{e['ms_per_frame']:.1f} ms/frame. Images: '{IMG_SPLIT}', '{IMG_ERROR}'")
+                              f"{e['ms_per_frame']:.1f} ms/frame. Render slots 1-3: GI Preview, Cycles, "
+                              f"error map (J flips); images '{IMG_SPLIT}', '{IMG_ERROR}'")
 
     # ---------------------------------------------------------------- blocking
     def execute(self, context):

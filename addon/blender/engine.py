@@ -40,6 +40,27 @@ EFFECT_PASS_CHANNELS = (3, "RGB", "COLOR")
 # What the last final render did, for the panel and for scripts (machine-readable).
 last_render: dict = {}
 
+# Images to present instead of rendering (label, (H, W, 4) linear): "Compare with Cycles"
+# fills render slots 1-3 through the engine, since a slot's pixels cannot be written from
+# Python. Consumed one per render call.
+display_queue: list = []
+
+
+def present(engine, depsgraph, label: str, image: np.ndarray):
+    """Write a ready image into the Render Result (the active render slot)."""
+    scene = depsgraph.scene
+    r = scene.render
+    w = int(r.resolution_x * r.resolution_percentage / 100)
+    h = int(r.resolution_y * r.resolution_percentage / 100)
+    if image.shape[:2] != (h, w):
+        engine.report({"ERROR"}, f"GI Preview: '{label}' is {image.shape[1]}x{image.shape[0]}, "
+                                 f"the render is {w}x{h}")
+        return
+    result = engine.begin_result(0, 0, w, h)
+    result.layers[0].passes["Combined"].rect = np.ascontiguousarray(image, np.float32).reshape(-1, 4)
+    engine.end_result(result)
+    engine.update_stats("", f"GI Preview: {label}")
+
 
 def technique_passes(technique_id: str) -> dict:
     passes = dict(BASE_PASSES)
@@ -60,6 +81,10 @@ def _settings(scene):
 
 
 def final_render(engine, depsgraph):
+    if display_queue:
+        label, image = display_queue.pop(0)
+        present(engine, depsgraph, label, image)
+        return
     scene = depsgraph.scene
     technique, quality, samples = _settings(scene)
     t0 = time.perf_counter()
