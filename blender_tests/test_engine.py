@@ -306,3 +306,57 @@ def test_settings_contract():
             s.technique = "NOT_A_TECHNIQUE"
     finally:
         bpy.data.scenes.remove(sc)
+
+
+def test_mesh_too_large_for_the_gpu_clear_error(monkeypatch):
+    """A scene whose vertex data exceeds what GI Preview uploads gets a clear error naming
+    the size, and nothing crashes (the limit is lowered here instead of building 2 GiB)."""
+    from gi_preview.render import gpu_scene
+
+    monkeypatch.setattr(gpu_scene, "MAX_VERTEX_BYTES", 1024)
+    sc = build_demo("cornell", resolution=32)
+    try:
+        sc.gi_preview.technique = "DIRECT"
+        with pytest.raises(RuntimeError, match="GiB of vertex data.*reduce the triangle count"):
+            bpy.ops.render.render(scene=sc.name)
+    finally:
+        bpy.data.scenes.remove(sc)
+    monkeypatch.undo()
+    # the renderer is still usable afterwards
+    sc = build_demo("cornell", resolution=32)
+    try:
+        sc.gi_preview.technique = "DIRECT"
+        sc.gi_preview.samples = 1
+        bpy.ops.render.render(scene=sc.name)
+        assert engine_mod.last_render["scene"] == sc.name
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+def test_spot_light_uses_one_perspective_view():
+    from gi_preview.render.passes import shadows
+
+    sc = build_demo("cornell", resolution=32)
+    try:
+        for ob in list(sc.objects):
+            if ob.type == "LIGHT":
+                bpy.data.objects.remove(ob)
+        spot = bpy.data.objects.new("spot", bpy.data.lights.new("spot", "SPOT"))
+        spot.data.spot_size = math.radians(60)
+        spot.data.energy = 200
+        spot.location = (0, 0, 1.9)
+        sc.collection.objects.link(spot)
+        from gi_preview.blender.export import export_scene
+
+        with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
+            dg = bpy.context.evaluated_depsgraph_get()
+        data = export_scene(dg)
+        res = session.render(data, "DIRECT", 1, 1)
+        assert np.isfinite(res.image).all() and res.image[..., :3].mean() > 1e-3
+        sess = session._sessions["final"]
+        _, graph = sess.graphs[("DIRECT", 1)]
+        views = graph.find("shadows")._last_views
+        spot_idx = [i for i, L in enumerate(data.lights) if L.name == "spot"][0]
+        assert sum(1 for v in views if v[0] == spot_idx) == 1
+    finally:
+        bpy.data.scenes.remove(sc)

@@ -242,9 +242,9 @@ class GPUScene:
                 if inst.material_map is None:
                     mesh._gi_key = key
             keys.append(key)
-            needed.add(key)
-            if key not in self._vbos:
+            if key not in needed:
                 total_bytes += mesh.positions.shape[0] * 36
+            needed.add(key)
         if total_bytes > MAX_VERTEX_BYTES:
             raise SceneError(
                 f"The scene needs {total_bytes / 2**30:.1f} GiB of vertex data, more than GI Preview "

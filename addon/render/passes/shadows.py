@@ -1,7 +1,8 @@
 """Shadow atlas: one R32F atlas holding every shadow view of every light.
 
-Views: six cube faces for point/spot/area/mesh lights (centred on a point sampled on the
-light each frame when the light has a size, so accumulated frames give physically sized
+Views: one perspective view for a spot light whose cone is at most 120 degrees, six cube
+faces for point, wider spot, area and mesh lights (centred on a point sampled on the light
+each frame when the light has a size, so accumulated frames give physically sized
 penumbrae), and cascades (orthographic, fitted to slices of the camera frustum) for sun
 lights, whose direction is sampled inside the sun's disk each frame. The shading side is
 ``shaders/lib/shadows.glsl``; the view record layout is ``ShadowView`` in common.glsl.
@@ -165,6 +166,15 @@ class ShadowPass(Pass):
             origin = np.asarray(origin, np.float64)
             far = float(np.linalg.norm(origin - center)) + radius * 1.01 + 1e-3
             near = max(1e-3, far * 1e-5)
+            L = rec.get("light")
+            if L is not None and L.type == LightType.SPOT and L.spot_size <= math.radians(120.0):
+                # one perspective view around the cone (10% margin for the blend and scale)
+                fov = min(math.radians(150.0), L.spot_size * 1.1 + math.radians(2.0))
+                proj = perspective(fov, near, far)
+                texel = 2 * math.tan(fov / 2) / res
+                vp = proj @ look_at(origin, L.direction.astype(np.float64), (0, 0, 1))
+                views.append((rec["index"], vp, origin, 0, normal, texel, far))
+                continue
             fov = math.radians(92.0)
             proj = perspective(fov, near, far)
             texel = 2 * math.tan(fov / 2) / res
@@ -250,6 +260,7 @@ class ShadowPass(Pass):
         if self._static_key == key and not self._dynamic(scene):
             return
         views = self._build_views(rc, frame)
+        self._last_views = views  # for inspection (tests, debug views)
         cols, res = self._ensure_atlas(rc, len(views))
         atlas_w, atlas_h = self.atlas.size
         table = np.zeros((max(1, len(views)), VIEW_FLOATS), np.float32)

@@ -27,7 +27,7 @@ from ..passes.screen_space import ao_chain
 from ..passes.shadows import ShadowPass
 from . import Technique, register
 from .direct import DirectLightPass
-from .ssao import AO_PROVIDES, BLUR, AOPass, _q
+from .ssao import FAR_PARAMS, AO_PROVIDES, BLUR, AOPass, _q
 
 
 class HBAOPass(AOPass):
@@ -41,6 +41,7 @@ class HBAOPass(AOPass):
         Param("falloff", 0.1, 0.0, 1.0, "fraction of the radius over which occluders fade out"),
         Param("bias", 0.005, 0.0, 1.0, "normal offset (scene units)"),
         Param("scale", 1.0, 0.25, 1.0, "resolution scale"),
+        *FAR_PARAMS,
     )
     quality_ladder = ({"directions": 2, "steps": 4, "scale": 0.5}, {"directions": 4, "steps": 6, "scale": 1.0},
                       {"directions": 6, "steps": 10, "scale": 1.0}, {"directions": 8, "steps": 16, "scale": 1.0})

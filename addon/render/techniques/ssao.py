@@ -6,25 +6,32 @@ hemisphere kernel, per-pixel rotation, range check; at ``scale`` of the resoluti
 (depth/normal-aware bilateral) → ``ssao_ambient_stats`` → ``ssao_composite``.
 
 What is added to DIRECT (docs/techniques/SSAO.md): the survey's "ambient term times AO",
-with a physical ambient: ``albedo_d * AO * (world radiance + L_amb) + spec_albedo * AO *
-world``, where ``L_amb`` is a constant indirect estimate from the screen means (radiosity's
+with a physical ambient: ``albedo_d * (V_world * world radiance + AO * L_amb) +
+spec_albedo * V_world * world``, V_world = the AO directions that also stay open in a
+far-field march (so a room does not see the sky through its walls), where ``L_amb`` is a constant indirect estimate from the screen means (radiosity's
 ambient term: mean direct-lit radiance x mean enclosure within the AO radius x a geometric
 series over ``ambient_bounces``). The AO itself is the ``GI_AO`` AOV, comparable with
 Cycles' AO at distance ``radius`` (reference kind "ao").
 
 | parameter | range | meaning |
 |---|---|---|
-| samples | 1–64 | kernel points per pixel per frame |
+| samples | 1–64 | kernel directions per pixel per frame |
+| points | 1–16 | kernel points per direction (1 = the classic kernel, which under-occludes) |
 | radius | 0.01–100 | AO distance in scene units (Cycles' AO distance) |
 | bias | 0–1 | depth bias / normal offset in scene units |
 | scale | 0.25–1 | resolution scale of the AO pass |
 | blur_radius | 0–8 | bilateral kernel radius (pixels) |
 | max_history | 1–1024 | temporal frames averaged at most |
 | ambient_bounces | 0–8 | bounces of the constant indirect term (0 = world only) |
+| far_points | 0–32 | far-field march points for the world's visibility (0 = the AO radius only) |
+| far_distance | 0–1e4 | far-field march length (0 = the scene's bounding diagonal) |
 
-Quality ladder (samples, scale, blur): 0 = 4, 0.5, 3; 1 = 8, 1, 2; 2 = 16, 1, 2; 3 = 32, 1, 1.
+Quality ladder (samples, points, scale, blur): 0 = 4, 2, 0.5, 3; 1 = 8, 3, 1, 2; 2 = 16, 4, 1, 2;
+3 = 32, 6, 1, 1.
 """
 from __future__ import annotations
+
+import numpy as np
 
 from ..framegraph import Effect, Param
 from ..gpu_scene import set_uniform
@@ -35,6 +42,10 @@ from . import Technique, register
 from .direct import DirectLightPass
 
 AO_PROVIDES = frozenset({Effect.AO, Effect.INDIRECT_DIFFUSE})
+FAR_PARAMS = (
+    Param("far_points", 6, 0, 32, "far-field march points deciding world visibility (0 = radius only)"),
+    Param("far_distance", 0.0, 0.0, 1e4, "far-field march length (0 = the scene's bounding diagonal)"),
+)
 BLUR = ({"blur_radius": 3}, {"blur_radius": 2}, {"blur_radius": 2}, {"blur_radius": 1})
 
 
@@ -58,11 +69,20 @@ class AOPass(ScreenPass):
     def set_uniforms(self, prog):
         raise NotImplementedError
 
+    def set_far(self, rc, prog):
+        far = float(self["far_distance"])
+        if far <= 0.0:
+            lo, hi = rc.scene.scene.world_bounds()
+            far = max(float(np.linalg.norm(np.asarray(hi) - np.asarray(lo))), 1e-3)
+        set_uniform(prog, "u_far_distance", far)
+        set_uniform(prog, "u_far_points", int(self["far_points"]))
+
     def execute(self, rc, frame):
         prog = self.program(rc, self.shader)
         bind_frame(rc, prog, frame)
         bind_gbuffer(rc, prog, Units(1))
         self.set_uniforms(prog)
+        self.set_far(rc, prog)
         size = self.out_size(rc)
         rc.texture(self.writes[0], 4, "f2", size=size).bind_to_image(0, read=False, write=True)
         self.run(rc, prog, size)
@@ -73,16 +93,19 @@ class SSAOPass(AOPass):
     shader = "screen_space/ssao.comp"
     prefix = "ssao"
     params = (
-        Param("samples", 8, 1, 64, "kernel points per pixel per frame"),
+        Param("samples", 8, 1, 64, "kernel directions per pixel per frame"),
+        Param("points", 3, 1, 16, "kernel points per direction (1 = classic one-point kernel)"),
         Param("radius", 1.0, 0.01, 100.0, "AO distance (scene units), as Cycles' AO distance"),
         Param("bias", 0.01, 0.0, 1.0, "depth bias and normal offset (scene units)"),
         Param("scale", 1.0, 0.25, 1.0, "resolution scale"),
+        *FAR_PARAMS,
     )
-    quality_ladder = ({"samples": 4, "scale": 0.5}, {"samples": 8, "scale": 1.0},
-                      {"samples": 16, "scale": 1.0}, {"samples": 32, "scale": 1.0})
+    quality_ladder = ({"samples": 4, "points": 2, "scale": 0.5}, {"samples": 8, "points": 3, "scale": 1.0},
+                      {"samples": 16, "points": 4, "scale": 1.0}, {"samples": 32, "points": 6, "scale": 1.0})
 
     def set_uniforms(self, prog):
         set_uniform(prog, "u_samples", int(self["samples"]))
+        set_uniform(prog, "u_points", int(self["points"]))
         set_uniform(prog, "u_radius", float(self["radius"]))
         set_uniform(prog, "u_bias", float(self["bias"]))
 

@@ -25,7 +25,7 @@ from ..passes.screen_space import DIRECT_RADIANCE, Units, ao_chain, bind_frame, 
 from ..passes.shadows import ShadowPass
 from . import Technique, register
 from .direct import DirectLightPass
-from .ssao import BLUR, AOPass, _q
+from .ssao import FAR_PARAMS, BLUR, AOPass, _q
 
 SSDO_PROVIDES = frozenset({Effect.AO, Effect.INDIRECT_DIFFUSE})
 
@@ -39,6 +39,7 @@ class SSDOPass(AOPass):
         Param("radius", 1.5, 0.01, 100.0, "sample radius (scene units)"),
         Param("bias", 0.01, 0.0, 1.0, "depth bias and normal offset (scene units)"),
         Param("scale", 1.0, 0.25, 1.0, "resolution scale"),
+        *FAR_PARAMS,
     )
     quality_ladder = ({"samples": 4, "radius": 1.0, "scale": 0.5}, {"samples": 8, "radius": 1.5, "scale": 1.0},
                       {"samples": 16, "radius": 2.0, "scale": 1.0}, {"samples": 32, "radius": 2.5, "scale": 1.0})
@@ -54,6 +55,7 @@ class SSDOPass(AOPass):
         bind_gbuffer(rc, prog, units)
         units.tex(prog, "u_radiance", rc.resources[DIRECT_RADIANCE])
         self.set_uniforms(prog)
+        self.set_far(rc, prog)
         size = self.out_size(rc)
         rc.texture(self.writes[0], 4, "f2", size=size).bind_to_image(0, read=False, write=True)
         self.run(rc, prog, size)
