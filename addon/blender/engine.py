@@ -253,6 +253,7 @@ class GIPreviewRenderEngine(bpy.types.RenderEngine):
     bl_use_preview = False
     bl_use_shading_nodes_custom = False
     bl_use_postprocess = True
+    bl_use_eevee_viewport = True  # Material Preview shading uses EEVEE (look-dev), Rendered uses GI Preview
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
