@@ -268,9 +268,19 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
         imageio.write_exr(os.path.join(out, base + ".exr"), img)
         imageio.write_png(os.path.join(out, base + ".png"), metrics.view_standard(img))
         ours_png = imageio.png_bytes(metrics.view_standard(img))
+        # per-effect error: an effect pass against the Cycles reference of just that effect,
+        # when this run rendered it (direct light: GI_Direct + Emit vs 'direct'; AO: GI_AO vs 'ao')
+        aovs = getattr(res, "aovs", {}) or {}
+        test_aovs, ref_aovs = {}, {}
+        if "GI_Direct" in aovs and "direct" in refs:
+            test_aovs["direct"] = aovs["GI_Direct"] + aovs.get("Emit", 0.0)
+            ref_aovs["direct"] = refs["direct"].image[..., :3]
+        if "GI_AO" in aovs and "ao" in refs:
+            test_aovs["ao"] = aovs["GI_AO"]
+            ref_aovs["ao"] = refs["ao"].image[..., :3]
         for k in kinds_for(tech):
             ref = refs[k]
-            m = metrics.compare(img, ref.image)
+            m = metrics.compare(img, ref.image, test_aovs=test_aovs, ref_aovs=ref_aovs)
             heat, legend = metrics.heatmap(img, ref.image)
             epath = os.path.join(out, f"{base}_vs_{k}_error.png")
             imageio.write_png(epath, heat)
