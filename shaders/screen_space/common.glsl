@@ -53,6 +53,35 @@ vec3 specular_albedo(Surface s, float NoV) {
 }
 #endif
 
+// Far field: does direction dir from O, already open within the radius r, still see the
+// world further out? A coarse march of u_far_points points spaced geometrically from r to
+// u_far_distance; a point behind the visible surface by less than the spacing (the
+// assumed thickness) is blocked there. Returns the blocking pixel (or ivec2(-1): open).
+// Points leaving the screen stop the march: open (screen space knows nothing beyond).
+uniform float u_far_distance;
+uniform int u_far_points;
+
+ivec2 far_blocker(vec3 O, vec3 dir, float r, float jitter) {
+    int m = u_far_points;
+    if (m <= 0 || u_far_distance <= r) return ivec2(-1);
+    float ratio = u_far_distance / r;
+    float prev_t = r;
+    for (int j = 0; j < m; ++j) {
+        float t = r * pow(ratio, (float(j) + jitter) / float(m));
+        vec3 S = O + dir * t;
+        vec2 sp = to_pixel(S);
+        if (!on_screen(sp)) break;
+        ivec2 hp = ivec2(sp);
+        vec4 hpos = texelFetch(u_gb_position, hp, 0);
+        if (hpos.w >= 0.0) {
+            float ds = view_depth(S), dh = view_depth(hpos.xyz);
+            if (dh < ds && ds - dh < (t - prev_t) + 0.05 * t) return hp;
+        }
+        prev_t = t;
+    }
+    return ivec2(-1);
+}
+
 // Per-pixel, per-frame random numbers (the rotation of the kernels).
 vec4 pixel_noise(ivec2 px, uint stream) {
     Rng r = rng_init(uvec2(px), u_sample, stream);

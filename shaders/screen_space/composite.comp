@@ -1,6 +1,7 @@
 // composite.comp — adds a screen-space technique's indirect light to DIRECT's colour.
 // MODE_AO (SSAO, HBAO; Mittring 2007, Bavoil et al. 2008): the ambient term the survey
-//   describes, made physical: L_in = AO * (world radiance + L_amb), where L_amb is a
+//   describes, made physical: L_in = V_world * world radiance + AO * L_amb (V_world: the
+//   AO's open directions that also stay open in the far-field march), where L_amb is a
 //   constant one-or-more-bounce estimate from the screen means (radiosity's ambient term):
 //   L_amb = B * e * sum_{k<bounces} (rho * e)^k (B mean direct-lit radiance, e mean
 //   enclosure 1-AO, rho mean diffuse albedo). Diffuse: albedo_d * L_in; glossy: the world
@@ -59,7 +60,8 @@ void main() {
         for (int k = 0; k < u_ambient_bounces; ++k) { series += term; term *= rho * e; }
         Lamb = B * e * series;
     }
-    add = kd * ao * (u_world + Lamb) + ks * ao * u_world;
+    float vw = clamp(sig.g, 0.0, 1.0);   // world visibility (near AO and far field)
+    add = kd * (vw * u_world + ao * Lamb) + ks * vw * u_world;
     imageStore(o_ao, px, vec4(vec3(ao), 1.0));
 #endif
 #ifdef MODE_SSDO

@@ -10,6 +10,9 @@
 // which DIRECT already counts), received if the sender faces the receiver. The estimator
 // is the cosine-weighted mean of incident radiance, so the diffuse bounce is
 // albedo_d * mean(L_in): bounded by the brightest on-screen sender.
+// Far field (an extension of the paper's near-field samples): a direction open within the
+// radius is marched further (far_blocker, common.glsl); a surface met there is a sender
+// too, so enclosed rooms do not see the world through their walls.
 // Output (at u_scale of the full resolution): rgb = mean sender radiance over all samples,
 // a = cosine-weighted fraction of unblocked directions (the world's visibility).
 #define USE_SCENE_BUFFERS
@@ -53,7 +56,7 @@ void main() {
         float s = fract(float(i) * 0.618034 + rnd.z);
         vec3 S = O + dir * (u_radius * mix(0.1, 1.0, s));
         vec2 sp = to_pixel(S);
-        if (!on_screen(sp)) { open += 1.0; continue; }
+        if (!on_screen(sp)) { open += 1.0; continue; }   // unknown: screen space sees the world
         ivec2 hp = ivec2(sp);
         GPixel h = fetch_g(hp);
         if (!h.valid) { open += 1.0; continue; }
@@ -65,7 +68,15 @@ void main() {
             float facing = dot(h.N, toP) > 0.0 ? 1.0 : 0.0;
             bounce += facing * texelFetch(u_radiance, hp, 0).rgb;
         } else {
-            open += 1.0;
+            // open within the radius: march further (far field); a surface met there is
+            // the sender, otherwise the direction sees the world
+            ivec2 fp = far_blocker(O, dir, u_radius, fract(s + 0.5));
+            if (fp.x < 0) {
+                open += 1.0;
+            } else {
+                GPixel f = fetch_g(fp);
+                bounce += (dot(f.N, g.P - f.P) > 0.0 ? 1.0 : 0.0) * texelFetch(u_radiance, fp, 0).rgb;
+            }
         }
     }
     imageStore(o_ssdo, q, vec4(sanitize(bounce / float(n)), open / float(n)));

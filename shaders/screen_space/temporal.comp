@@ -4,8 +4,8 @@
 // The current (possibly lower-resolution) signal is upsampled with a joint bilateral 2x2
 // filter (plane distance and normal of the full-resolution pixel), the history is
 // reprojected with the G-buffer motion vectors (bilinear over 2x2 taps), and each tap is
-// kept only if the surface there last frame lies on this pixel's plane and has a similar
-// normal (disocclusion rejection, so a moving camera does not ghost). The output is the
+// kept only if the surface there last frame lies on this pixel's plane, projects to within
+// 1.5 pixels of this pixel in the current view, and has a similar normal (disocclusion rejection, so a moving camera does not ghost). The output is the
 // running mean over min(history + 1, u_max_history) frames: a still camera converges, a
 // moving one forgets within u_max_history frames.
 // Outputs: o_out (signal), o_len (history length), and this frame's position/normal for
@@ -79,7 +79,8 @@ void main() {
         ivec2 b = ivec2(floor(prev));
         vec2 f = prev - vec2(b);
         float d = view_depth(P);
-        float tol = 2.0 / pixels_per_unit(d) + 0.01 * d;
+        float foot = 1.0 / pixels_per_unit(d);   // one pixel in world units at this depth
+        float tol = 2.0 * foot + 0.01 * d;
         float wsum = 0.0;
         vec4 hsum = vec4(0.0);
         float lsum = 0.0;
@@ -91,7 +92,10 @@ void main() {
                 vec4 hp = texelFetch(u_hist_pos, t, 0);
                 if (hp.w <= 0.0) continue;
                 vec3 hn = texelFetch(u_hist_nrm, t, 0).xyz;
-                if (abs(dot(N, hp.xyz - P)) > tol || dot(hn, N) < 0.9) continue;
+                vec3 dp = hp.xyz - P;
+                // the tap's surface point must land within ~1.5 pixels of this pixel now
+                vec2 tp = to_pixel(hp.xyz) - (vec2(px) + 0.5);
+                if (abs(dot(N, dp)) > tol || dot(tp, tp) > 2.25 || dot(hn, N) < 0.9) continue;
                 float w = (i == 0 ? 1.0 - f.x : f.x) * (j == 0 ? 1.0 - f.y : f.y);
                 hsum += w * texelFetch(u_hist, t, 0);
                 lsum += w * hp.w;
