@@ -30,3 +30,60 @@ _PKG_ROOT = _TMP / "pkg"
 _PKG_ROOT.mkdir()
 (_PKG_ROOT / "gi_preview").symlink_to(ADDON_DIR, target_is_directory=True)
 sys.path.insert(0, str(_PKG_ROOT))
+
+
+# ---------------------------------------------------------------- fixtures
+import pytest  # noqa: E402
+
+_ID_COLLECTIONS = ("scenes", "objects", "meshes", "materials", "lights", "cameras", "worlds", "images",
+                   "collections", "node_groups", "textures", "curves", "actions", "metaballs")
+
+
+def _bpy():
+    try:
+        import bpy
+    except ImportError:  # bpy-free test runs
+        return None
+    return bpy
+
+
+# Blender's own images, which it keeps pointers to: never removed by the cleanup.
+_KEEP = {("images", "Render Result"), ("images", "Viewer Node")}
+
+
+def _all_ids(bpy) -> dict:
+    out = {}
+    for attr in _ID_COLLECTIONS:
+        for idb in getattr(bpy.data, attr):
+            if (attr, idb.name_full) not in _KEEP:
+                out[(attr, idb.name_full)] = idb
+    return out
+
+
+@pytest.fixture(scope="session", autouse=True)
+def gi_preview_addon():
+    """Register the add-on once for the whole run (as Blender does at start-up), so that
+    tests see one registration, not repeated register/unregister cycles."""
+    bpy = _bpy()
+    if bpy is None:
+        yield None
+        return
+    import gi_preview
+
+    gi_preview.register()
+    yield gi_preview
+    gi_preview.unregister()
+
+
+@pytest.fixture(autouse=True)
+def clean_blend_data():
+    """Remove every datablock a test created, so names never collide between tests."""
+    bpy = _bpy()
+    if bpy is None:
+        yield
+        return
+    before = set(_all_ids(bpy))
+    yield
+    new = [idb for key, idb in _all_ids(bpy).items() if key not in before]
+    if new:
+        bpy.data.batch_remove(new)

@@ -78,7 +78,6 @@ def test_compare_operator(tmp_path, monkeypatch):
     import gi_preview
     from gi_preview.blender import compare_ops, demo_scenes
     from gi_preview.compare import imageio
-    gi_preview.register()
     sc = demo_scenes.build_demo("cornell", resolution=32)
     try:
         with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
@@ -107,4 +106,3 @@ def test_compare_operator(tmp_path, monkeypatch):
         assert sc.render.engine == "GI_PREVIEW"
     finally:
         bpy.data.scenes.remove(sc)
-        gi_preview.unregister()

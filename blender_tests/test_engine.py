@@ -28,13 +28,6 @@ from gi_preview.render import session
 REPO = Path(__file__).resolve().parent.parent
 
 
-@pytest.fixture(scope="module", autouse=True)
-def addon():
-    gi_preview.register()
-    yield
-    gi_preview.unregister()
-
-
 def render_to_array(scene, tmp_path, name="f12", after_render=None) -> np.ndarray:
     """F12 through bpy.ops.render.render, saved as a float EXR and read back."""
     bpy.ops.render.render(scene=scene.name)
@@ -417,5 +410,31 @@ def test_viewport_progressive_with_fake_gpu(monkeypatch):
         rv3d.view_matrix = Matrix.Translation((0.1, 0, 0)) @ view
         engine_mod.view_draw(eng, ctx, dg)
         assert eng._viewport.count == 1
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+@pytest.mark.parametrize("demo,ssr_runs", [("cornell", False), ("glossy_spheres", True)])
+def test_auto_runs_only_the_passes_the_scene_needs(demo, ssr_runs):
+    """AUTO = DIRECT + SSDO + SSR passes in one graph; the planner skips SSR where no glossy
+    surface is in view, and says why."""
+    sc = build_demo(demo, resolution=32)
+    try:
+        from gi_preview.blender.export import export_scene
+
+        with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
+            dg = bpy.context.evaluated_depsgraph_get()
+        res = session.render(export_scene(dg), "AUTO", 0, 2)
+        assert np.isfinite(res.image).all()
+        skipped = {s.name: s.reason for s in res.skipped_passes}
+        ssr = {n for n in res.pass_ms if n.startswith("ssr")}
+        if ssr_runs:
+            assert ssr and not any(n.startswith("ssr") for n in skipped)
+            assert "indirect_specular" in res.effects
+        else:
+            assert not ssr
+            assert {n for n in skipped if n.startswith("ssr")} and all(
+                r == "no glossy surface in view" for n, r in skipped.items() if n.startswith("ssr"))
+        assert "ssdo" in res.pass_ms and "indirect_diffuse" in res.effects
     finally:
         bpy.data.scenes.remove(sc)

@@ -610,16 +610,12 @@ def test_demo_scene_builds_and_exports(scene, name):
 
 
 def test_operator_and_menu(scene):
-    for cls in demo_scenes.classes:
-        bpy.utils.register_class(cls)
-    try:
-        n = len(bpy.data.scenes)
-        assert bpy.ops.gi_preview.add_demo_scene(scene="cornell", resolution=32) == {"FINISHED"}
-        assert len(bpy.data.scenes) == n + 1
-        assert demo_scenes.GIPREVIEW_OT_add_demo_scene.__doc__
-        assert callable(demo_scenes.menu_func)
-    finally:
-        for cls in reversed(demo_scenes.classes):
-            bpy.utils.unregister_class(cls)
+    """The add-on (registered once for the run by conftest) exposes the operator and menu."""
+    n = len(bpy.data.scenes)
+    assert bpy.ops.gi_preview.add_demo_scene(scene="cornell", resolution=32) == {"FINISHED"}
+    assert len(bpy.data.scenes) == n + 1
+    assert demo_scenes.GIPREVIEW_OT_add_demo_scene.__doc__
+    assert callable(demo_scenes.menu_func)
+    assert demo_scenes.menu_func in bpy.types.VIEW3D_MT_add._dyn_ui_initialize()
     with pytest.raises(ValueError):
         demo_scenes.build_demo("nope")

@@ -64,14 +64,12 @@ def present(engine, depsgraph, label: str, image: np.ndarray):
 
 def technique_passes(technique_id: str) -> dict:
     passes = dict(BASE_PASSES)
-    ids = [i.id for i in techniques.available()] if technique_id == "AUTO" else [technique_id]
-    for tid in ids:
-        try:
-            cls = techniques.get(tid)
-        except ValueError:
-            continue
-        for name in cls.outputs:
-            passes.setdefault(name, EFFECT_PASS_CHANNELS)
+    try:
+        tech = techniques.get(technique_id)()
+    except ValueError:
+        return passes
+    for name in tech.outputs:
+        passes.setdefault(name, EFFECT_PASS_CHANNELS)
     return passes
 
 

@@ -5,14 +5,14 @@ import bpy
 
 from ..render import techniques
 
-AUTO_ITEM = ("AUTO", "Auto", "The planner picks the cheapest technique that covers what the scene needs")
 
 
 
 def technique_items() -> list:
-    """AUTO plus every registered technique, as static enum items (introspectable by
+    """Every registered technique (AUTO first), as static enum items (introspectable by
     scripts through ``bl_rna``); built when the add-on registers."""
-    return [AUTO_ITEM] + [(i.id, i.label, i.description) for i in techniques.available()]
+    infos = sorted(techniques.available(), key=lambda i: i.id != "AUTO")
+    return [(i.id, i.label, i.description) for i in infos]
 
 
 def _update(self, context):

@@ -221,21 +221,18 @@ class FrameGraph:
     # ------------------------------------------------------------------ planning
     def plan(self, needed: set, reasons: dict[str, str] | None = None) -> Plan:
         """Choose the passes to run: those that provide a needed effect or are ``always``,
-        plus (transitively) every pass that writes a resource a chosen pass reads.
+        plus (transitively) every earlier pass that writes a resource a chosen pass reads.
         ``reasons`` maps an effect to why the scene does not need it."""
         reasons = reasons or {}
         chosen = [p.always or bool(p.provides & needed) for p in self.passes]
-        changed = True
-        while changed:
-            changed = False
-            reads = set()
-            for p, c in zip(self.passes, chosen):
-                if c:
-                    reads.update(p.reads)
-            for i, p in enumerate(self.passes):
-                if not chosen[i] and reads.intersection(p.writes):
-                    chosen[i] = True
-                    changed = True
+        # a kept pass pulls in the passes before it that write what it reads (producers run
+        # before consumers: a later pass writing the same resource is not a producer of it)
+        for i in range(len(self.passes) - 1, -1, -1):
+            if not chosen[i]:
+                continue
+            for j in range(i - 1, -1, -1):
+                if not chosen[j] and set(self.passes[i].reads).intersection(self.passes[j].writes):
+                    chosen[j] = True
         active, skipped = [], []
         for p, c in zip(self.passes, chosen):
             if c:

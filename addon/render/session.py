@@ -104,10 +104,7 @@ class Session:
                continue_accumulation: bool = False, keep_history: bool = False) -> RenderResult:
         validate_scene(scene)
         t_start = time.perf_counter()
-        requested = technique
         analysis = analyse(scene)
-        if technique == "AUTO":
-            technique = techniques.auto_choice(analysis.needed)
         tech, graph = self._graph(technique, quality)
         changes = self.gpu_scene.update(scene)
         size = (scene.width, scene.height)
@@ -173,8 +170,6 @@ class Session:
         aovs.update(self._gbuffer_aovs(scene))
         effects = sorted({e.value for p in plan.active for e in p.provides} & {e.value for e in analysis.needed})
         warnings = list(scene.warnings)
-        if requested == "AUTO":
-            warnings.append(f"AUTO chose {technique}")
         return RenderResult(
             image=image, aovs=aovs, technique=technique, quality=quality, samples=self.acc_count,
             pass_ms=pass_ms, frame_ms=float(statistics.median(frame_times)) if frame_times else 0.0,
@@ -244,8 +239,7 @@ def render(scene: SceneData, technique: str = "DIRECT", quality: int = 1, sample
     what has accumulated, with ``cancelled=True``; cancelled before the first frame raises
     ``Cancelled``).
     """
-    if technique != "AUTO":
-        techniques.get(technique)  # unknown ids fail here, on the caller's thread
+    techniques.get(technique)  # unknown ids fail here, on the caller's thread
     gl = get_gl()
     stop = cancel if isinstance(cancel, threading.Event) else threading.Event()
     prog_q: queue.Queue = queue.Queue()

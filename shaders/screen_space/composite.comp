@@ -24,6 +24,7 @@ layout(binding = 0, rgba32f) uniform image2D io_color;
 layout(binding = 1, rgba32f) uniform writeonly image2D o_ao;
 
 uniform sampler2D u_signal;
+uniform float u_world_specular;  // 0 when an SSR pass in the same graph owns the specular term
 #ifdef MODE_AO
 uniform sampler2D u_stats0;
 uniform sampler2D u_stats1;
@@ -61,12 +62,12 @@ void main() {
         Lamb = B * e * series;
     }
     float vw = clamp(sig.g, 0.0, 1.0);   // world visibility (near AO and far field)
-    add = kd * (vw * u_world + ao * Lamb) + ks * vw * u_world;
+    add = kd * (vw * u_world + ao * Lamb) + u_world_specular * ks * vw * u_world;
     imageStore(o_ao, px, vec4(vec3(ao), 1.0));
 #endif
 #ifdef MODE_SSDO
     float vis = clamp(sig.a, 0.0, 1.0);
-    add = kd * (max(sig.rgb, vec3(0.0)) + u_world * vis) + ks * u_world * vis;
+    add = kd * (max(sig.rgb, vec3(0.0)) + u_world * vis) + u_world_specular * ks * u_world * vis;
     imageStore(o_ao, px, vec4(vec3(vis), 1.0));
 #endif
 #ifdef MODE_SSR

@@ -313,6 +313,8 @@ class CompositePass(ScreenPass):
 
     params = (
         Param("ambient_bounces", 1, 0, 8, "AO modes: bounces of the constant indirect term (0 = world only)"),
+        Param("world_specular", True, doc="AO/SSDO modes: add the occluded world reflection (off when an SSR "
+                                          "pass in the same graph owns the specular term)"),
     )
 
     def __init__(self, quality=None, *, mode: str, signal: str, ao_output: str | None = None, **kw):
@@ -339,6 +341,7 @@ class CompositePass(ScreenPass):
             units.tex(prog, "u_stats1", res[STATS1])
             set_uniform(prog, "u_stats_lod", float(int(math.floor(math.log2(max(rc.size))))))
             set_uniform(prog, "u_ambient_bounces", int(self["ambient_bounces"]))
+        set_uniform(prog, "u_world_specular", 1.0 if self["world_specular"] else 0.0)
         bind_gbuffer(rc, prog, units)
         res[COLOR].bind_to_image(0, read=True, write=True)
         if self.ao_output:

@@ -65,7 +65,7 @@ class Technique:
 REGISTRY: dict[str, type] = {}
 
 # Modules of techniques, in menu order. A module that fails to import is reported, not fatal.
-_MODULES = ("direct", "pt", "ssao", "hbao", "ssdo", "ssr")
+_MODULES = ("direct", "pt", "ssao", "hbao", "ssdo", "ssr", "auto")
 _loaded = False
 LOAD_ERRORS: dict[str, str] = {}
 
@@ -105,17 +105,3 @@ def get(technique_id: str) -> type:
     except KeyError:
         raise ValueError(f"unknown GI Preview technique '{technique_id}' (available: "
                          f"{', '.join(REGISTRY)})") from None
-
-
-def auto_choice(needed: set) -> str:
-    """AUTO: the cheapest technique that covers the most of the effects the scene needs."""
-    _load()
-    best, best_key = "DIRECT", None
-    for cls in REGISTRY.values():
-        if cls.id == "PT" or getattr(cls, "auto_candidate", True) is False:
-            continue
-        covered = len(cls.provides() & needed)
-        key = (-covered, cls.cost_rank)
-        if best_key is None or key < best_key:
-            best, best_key = cls.id, key
-    return best
