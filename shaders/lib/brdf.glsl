@@ -1,13 +1,23 @@
-// brdf.glsl — the Principled BSDF subset GI Preview shades (Blender 4.x/5.x Principled v2):
-// Lambertian diffuse under a dielectric GGX specular layer (diffuse weighted by one minus
-// the specular layer's directional albedo), metals as GGX with Schlick/F82 Fresnel
-// (F82 tint = white reduces to Schlick), multiple-scattering energy compensation
-// (Fdez-Aguera 2019), height-correlated Smith masking (Heitz 2014), and visible-normal
-// sampling (Heitz 2018, "Sampling the GGX Distribution of Visible Normals").
-// Roughness is Blender's perceptual roughness; GGX alpha = roughness^2.
-// Requires common.glsl and sampling.glsl.
+// brdf.glsl — the Principled BSDF subset GI Preview shades, as Cycles evaluates it
+// (Blender 4.x/5.x Principled v2, Multiscatter GGX, the default):
+// * dielectric specular layer: GGX with the exact dielectric Fresnel remapped to
+//   [f0 * specular tint, 1] (Cycles' generalized Schlick with exponent -eta);
+// * metal: GGX with the F82-tint Fresnel (F0 = base colour, tint = specular tint; a white
+//   tint reduces it to Schlick);
+// * multiple-scattering energy preservation as Cycles does it: each GGX lobe is scaled by
+//   1 + Fms (1 - E) / E with E the tabulated GGX albedo and Fms = Fss Eavg / (1 - Fss (1 - Eavg))
+//   (Kulla & Conty 2017), Fss the lobe's hemispherical-average Fresnel;
+// * Lambertian diffuse weighted by 1 - max(albedo of the specular layer) with the layer's
+//   albedo E (1 + Fms (1-E)/E) mix(f0, 1, s), s from the tabulated Fresnel average
+//   (Cycles' closure_layering_weight / bsdf_microfacet_estimate_albedo);
+// * height-correlated Smith masking (Heitz 2014), visible-normal sampling (Heitz 2018).
+// The tables (lib/brdf_tables.glsl) are recomputed by scripts/gen_brdf_tables.py with
+// Cycles' definitions, grids and bilinear lookup. Roughness is Blender's perceptual
+// roughness; GGX alpha = roughness^2. Requires common.glsl and sampling.glsl.
 #ifndef GI_BRDF_GLSL
 #define GI_BRDF_GLSL
+
+#include "lib/brdf_tables.glsl"
 
 struct Surface {
     vec3 base_color;
@@ -82,20 +92,98 @@ vec2 ggx_albedo_fit(float NoV, float roughness) {
     return clamp(vec2(-1.04, 1.04) * a004 + r.zw, 0.0, 1.0);
 }
 
-// Albedo of the dielectric specular layer seen from NoV (with multiple-scattering compensation).
+// ---- Cycles' tables (lookup_table_read: bilinear, grid i/(size-1), clamped)
+float ggx_E(float rough, float mu) {
+    float x = clamp(rough, 0.0, 1.0) * 31.0, y = clamp(mu, 0.0, 1.0) * 31.0;
+    int i0 = min(int(x), 31), j0 = min(int(y), 31);
+    int i1 = min(i0 + 1, 31), j1 = min(j0 + 1, 31);
+    float tx = x - float(i0), ty = y - float(j0);
+    float a = mix(GGX_E[i0 * 32 + j0], GGX_E[i1 * 32 + j0], tx);
+    float b = mix(GGX_E[i0 * 32 + j1], GGX_E[i1 * 32 + j1], tx);
+    return max(mix(a, b, ty), 1e-4);
+}
+
+float ggx_Eavg(float rough) {
+    float x = clamp(rough, 0.0, 1.0) * 31.0;
+    int i0 = min(int(x), 31), i1 = min(i0 + 1, 31);
+    return mix(GGX_EAVG[i0], GGX_EAVG[i1], x - float(i0));
+}
+
+float _schlick_s_at(int k, float x, float y) {
+    int i0 = min(int(x), 15), j0 = min(int(y), 15);
+    int i1 = min(i0 + 1, 15), j1 = min(j0 + 1, 15);
+    float tx = x - float(i0), ty = y - float(j0);
+    int o = k * 256;
+    float a = mix(GGX_SCHLICK_S[o + j0 * 16 + i0], GGX_SCHLICK_S[o + j0 * 16 + i1], tx);
+    float b = mix(GGX_SCHLICK_S[o + j1 * 16 + i0], GGX_SCHLICK_S[o + j1 * 16 + i1], tx);
+    return mix(a, b, ty);
+}
+
+// Fresnel blend factor of the dielectric layer averaged over the GGX lobe (ggx_gen_schlick_ior_s).
+float ggx_schlick_s(float rough, float mu, float eta) {
+    float z = sqrt(abs((eta - 1.0) / (eta + 1.0))) * 15.0;
+    float x = clamp(rough, 0.0, 1.0) * 15.0, y = clamp(mu, 0.0, 1.0) * 15.0;
+    z = clamp(z, 0.0, 15.0);
+    int k0 = min(int(z), 15), k1 = min(k0 + 1, 15);
+    return mix(_schlick_s_at(k0, x, y), _schlick_s_at(k1, x, y), z - float(k0));
+}
+
+// Multiple-scattering scale of a GGX lobe with hemispherical-average Fresnel Fss (Cycles'
+// microfacet_ggx_preserve_energy: energy_scale * darkening).
+vec3 ggx_ms_scale(float E, float Eavg, vec3 Fss) {
+    vec3 Fms = Fss * Eavg / max(1.0 - Fss * (1.0 - Eavg), vec3(1e-6));
+    return 1.0 + Fms * ((1.0 - E) / E);
+}
+
+// Dielectric layer: f0 with the tint, and its average Fresnel Fss (Kulla & Conty's fit).
+vec3 dielectric_f0(Surface s) { return s.f0 * s.spec_tint; }
+vec3 dielectric_Fss(Surface s) {
+    float real_fss = (s.eta - 1.0) / (4.08567 + 1.00071 * s.eta);
+    float t = clamp((real_fss - s.f0) / max(1.0 - s.f0, 1e-6), 0.0, 1.0);
+    return mix(dielectric_f0(s), vec3(1.0), t);
+}
+
+// Metal: F82-tint (Cycles' fresnel_f82tint): b from the tint, F = Schlick - b cos (1-cos)^6.
+vec3 metal_f82_b(Surface s) {
+    const float f = 6.0 / 7.0;
+    const float f5 = f * f * f * f * f;
+    vec3 tint = min(s.spec_tint, vec3(1.0));
+    vec3 schlick = mix(s.base_color, vec3(1.0), f5);
+    return schlick * (7.0 / (f5 * f)) * (1.0 - tint);
+}
+vec3 fresnel_f82_tint(vec3 f0, vec3 b, float cosi) {
+    float m = clamp(1.0 - cosi, 0.0, 1.0);
+    float m5 = (m * m) * (m * m) * m;
+    return clamp(mix(f0, vec3(1.0), m5) - b * cosi * m5 * m, 0.0, 1.0);
+}
+vec3 metal_Fss(Surface s) {
+    return clamp(mix(s.base_color, vec3(1.0), 1.0 / 21.0) - metal_f82_b(s) / 126.0, 0.0, 1.0);
+}
+
+// Albedo of the dielectric specular layer seen from NoV (what Cycles takes off the diffuse),
+// as a scalar (closure_layering_weight takes the max over channels).
 float dielectric_layer_albedo(Surface s, float NoV) {
-    vec2 ab = ggx_albedo_fit(NoV, s.roughness);
-    float ess = ab.x + ab.y;
-    float e = s.f0 * ab.x + ab.y;
-    return clamp(e + s.f0 * (1.0 - ess) , 0.0, 1.0) * step(1e-6, s.f0);
+    if (s.f0 <= 1e-6) return 0.0;
+    float E = ggx_E(s.roughness, NoV);
+    vec3 ms = ggx_ms_scale(E, ggx_Eavg(s.roughness), dielectric_Fss(s));
+    float sv = ggx_schlick_s(s.roughness, NoV, s.eta);
+    vec3 a = E * ms * mix(dielectric_f0(s), vec3(1.0), sv);
+    return clamp(max3(a), 0.0, 1.0);
+}
+
+// Approximate albedo of the metal lobe (for lobe selection only).
+vec3 metal_albedo_estimate(Surface s, float NoV) {
+    float E = ggx_E(s.roughness, NoV);
+    vec3 Fss = metal_Fss(s);
+    return clamp(E * ggx_ms_scale(E, ggx_Eavg(s.roughness), Fss) * Fss, 0.0, 1.0);
 }
 
 // Weights of the two lobes, for lobe selection in sampling (sum to 1).
 vec2 lobe_weights(Surface s, float NoV) {
-    float diff = (1.0 - s.metallic) * (1.0 - dielectric_layer_albedo(s, NoV)) * luminance(s.base_color);
-    vec2 ab = ggx_albedo_fit(NoV, s.roughness);
-    float spec_d = (1.0 - s.metallic) * dielectric_layer_albedo(s, NoV) * luminance(s.spec_tint);
-    float spec_m = s.metallic * luminance(s.base_color * ab.x + ab.y);
+    float layer = dielectric_layer_albedo(s, NoV);
+    float diff = (1.0 - s.metallic) * (1.0 - layer) * luminance(s.base_color);
+    float spec_d = (1.0 - s.metallic) * layer;
+    float spec_m = s.metallic * luminance(metal_albedo_estimate(s, NoV));
     float spec = spec_d + spec_m;
     float tot = diff + spec;
     if (tot <= 0.0) return vec2(0.5, 0.5);
@@ -120,18 +208,24 @@ BsdfEval eval_principled(Surface s, vec3 N, vec3 V, vec3 L) {
     float VoH = max(dot(V, H), 0.0);
     float a2 = s.alpha * s.alpha;
     float DV = ggx_D(NoH, a2) * ggx_V(NoV, NoL, a2);
-    vec2 ab = ggx_albedo_fit(NoV, s.roughness);
-    float ess = max(ab.x + ab.y, 1e-3);
-    // dielectric layer
-    float Fd = fresnel_dielectric(VoH, s.eta) * step(1e-6, s.f0);
-    float comp_d = 1.0 + s.f0 * (1.0 - ess) / ess;
-    vec3 spec_d = s.spec_tint * (Fd * DV * comp_d);
-    float layer = 1.0 - dielectric_layer_albedo(s, NoV);
-    vec3 diff = s.base_color * (INV_PI * layer);
-    // metal
-    vec3 Fm = fresnel_schlick(s.base_color, VoH);
-    vec3 comp_m = 1.0 + s.base_color * (1.0 - ess) / ess;
-    vec3 spec_m = Fm * DV * comp_m;
+    float E = ggx_E(s.roughness, NoV);
+    float Eavg = ggx_Eavg(s.roughness);
+    // dielectric layer: exact Fresnel remapped to [f0 * tint, 1]
+    vec3 spec_d = vec3(0.0);
+    float layer = 0.0;
+    if (s.f0 > 1e-6 && s.metallic < 1.0) {
+        float Fr = fresnel_dielectric(VoH, s.eta);
+        float sF = clamp((Fr - s.f0) / max(1.0 - s.f0, 1e-6), 0.0, 1.0);
+        spec_d = mix(dielectric_f0(s), vec3(1.0), sF) * DV * ggx_ms_scale(E, Eavg, dielectric_Fss(s));
+        layer = dielectric_layer_albedo(s, NoV);
+    }
+    vec3 diff = s.base_color * (INV_PI * (1.0 - layer));
+    // metal: F82-tint
+    vec3 spec_m = vec3(0.0);
+    if (s.metallic > 0.0) {
+        vec3 Fm = fresnel_f82_tint(s.base_color, metal_f82_b(s), VoH);
+        spec_m = Fm * DV * ggx_ms_scale(E, Eavg, metal_Fss(s));
+    }
     e.diffuse = (1.0 - s.metallic) * diff * NoL;
     e.glossy = mix(spec_d, spec_m, s.metallic) * NoL;
     return e;

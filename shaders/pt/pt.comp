@@ -51,6 +51,24 @@ Material fetch_material(int id) {
     return materials[id];
 }
 
+// Image textures as Cycles samples them with Linear interpolation and Repeat extension:
+// bilinear between texel centres of the full-resolution image (x * width - 0.5), wrapping.
+// Done by hand with texelFetch so no sampler state (mipmaps, anisotropy) can blur it.
+vec3 texture_bilinear(vec2 uv, int layer) {
+    ivec2 size = textureSize(u_textures, 0).xy;
+    vec2 x = uv * vec2(size) - 0.5;
+    vec2 f = floor(x);
+    vec2 t = x - f;
+    ivec2 i0 = ivec2(f);
+    ivec2 a = ((i0 % size) + size) % size;
+    ivec2 b = (((i0 + 1) % size) + size) % size;
+    vec3 c00 = texelFetch(u_textures, ivec3(a.x, a.y, layer), 0).rgb;
+    vec3 c10 = texelFetch(u_textures, ivec3(b.x, a.y, layer), 0).rgb;
+    vec3 c01 = texelFetch(u_textures, ivec3(a.x, b.y, layer), 0).rgb;
+    vec3 c11 = texelFetch(u_textures, ivec3(b.x, b.y, layer), 0).rgb;
+    return mix(mix(c00, c10, t.x), mix(c01, c11, t.x), t.y);
+}
+
 // ---------------------------------------------------------------- light sampling
 struct LightSample {
     vec3 dir;      // unit, from the shading point towards the light
@@ -263,7 +281,7 @@ PathOut trace_path(vec2 pix, inout Rng rng) {
         RtSurface sf = rt_surface(h);
         Material m = fetch_material(sf.material);
         vec3 base = m.base_color.rgb;
-        if (m.base_color.w >= 0.0) base = textureLod(u_textures, vec3(sf.uv, m.base_color.w), 0.0).rgb;
+        if (m.base_color.w >= 0.0) base = texture_bilinear(sf.uv, int(m.base_color.w + 0.5));
         Surface s = make_surface(m, base);
         vec3 V = -d;
         vec3 Ng = sf.geo_normal;
@@ -298,7 +316,7 @@ PathOut trace_path(vec2 pix, inout Rng rng) {
             float sel;
             int li = select_light(ul.x, sel);
             Light L = lights[li];
-            LightSample ls = sample_light(L, sf.position, ul.yz, ul.w);
+            LightSample ls = sample_light(L, p, ul.yz, ul.w);  // from the offset origin: the shadow ray ends exactly at the sample
             if (ls.pdf > 0.0 && sel > 0.0 && dot(ls.dir, Ng) > 0.0) {
                 BsdfEval fe = eval_principled(s, N, V, ls.dir);
                 vec3 f = fe.diffuse + fe.glossy;

@@ -35,7 +35,8 @@ import numpy as np
 from ..bvh import SceneBVH
 from ..framegraph import Effect, Param, Pass
 from ..gpu_scene import set_uniform
-from ..rt_scene import RtBuffers
+from ..rt_scene import RtBuffers, max_ssbo_bytes
+from ..scene_data import SceneError
 from ..scene_data import LightType
 from . import Technique, register
 
@@ -79,6 +80,25 @@ def light_selection(scene, light_array: np.ndarray, count: int) -> np.ndarray:
     return np.concatenate([cdf, prob]).astype(np.float32)
 
 
+VERT_BYTES_PER_TRIANGLE = 48  # bvh.glsl: three vec4 corners per triangle (the largest buffer)
+
+
+def check_triangle_budget(scene, limit: int) -> None:
+    """Refuse, with a SceneError naming the limit, a scene whose BVH vertex buffer would exceed
+    the GL context's GL_MAX_SHADER_STORAGE_BLOCK_SIZE (128 MiB on llvmpipe: ~2.8 M triangles),
+    before spending time building it. RtBuffers checks every buffer again after the build."""
+    tris = sum(scene.meshes[i].triangle_count for i in sorted({inst.mesh for inst in scene.instances}))
+    need = tris * VERT_BYTES_PER_TRIANGLE
+    if need > limit:
+        raise SceneError(
+            f"PT cannot trace this scene: its {tris:,} triangles need {need / 2**20:.0f} MiB of "
+            f"vertex data in one shader storage block, more than this GPU driver allows "
+            f"(GL_MAX_SHADER_STORAGE_BLOCK_SIZE = {limit / 2**20:.0f} MiB, about "
+            f"{limit // VERT_BYTES_PER_TRIANGLE:,} triangles). Reduce the triangle count (lower "
+            f"Subdivision or Decimate levels, hide objects from rendering) or pick a rasterisation "
+            f"technique.")
+
+
 class PathTracePass(Pass):
     name = "path_trace"
     provides = frozenset({Effect.DIRECT, Effect.SHADOWS, Effect.EMISSION, Effect.ENVIRONMENT,
@@ -116,6 +136,7 @@ class PathTracePass(Pass):
                                             + (b"" if i.material_map is None else np.asarray(i.material_map).tobytes())
                                             for i in scene.instances), digest_size=16).hexdigest()
         if self.rt is None or key != self._geo_key:
+            check_triangle_budget(scene, max_ssbo_bytes(rc.ctx))  # before a long BVH build
             t0 = time.perf_counter()
             if self.rt is not None:
                 self.rt.release()
