@@ -104,6 +104,8 @@ def build_scene(light_kind: str):
     elif light_kind == "area_disk":
         ob = light("AREA", energy=250.0, shape="DISK", size=1.0)
         ob.location = (-0.5, -0.5, 2.5)
+    elif light_kind == "world":
+        sc.world = make_world("sky_world", (0.4, 0.5, 0.7), 1.0)
     elif light_kind == "emissive_mesh":
         em = make_emission("panel", (1.0, 0.9, 0.8), 8.0)
         _mesh(sc, "panel", [(-.6, -.4, 0), (.6, -.4, 0), (.6, .4, 0), (-.6, .4, 0)], [(0, 1, 2, 3)], em,
@@ -143,7 +145,7 @@ def _penumbra_mask(sc) -> tuple[np.ndarray, np.ndarray]:
     return dil, shadowed
 
 
-@pytest.mark.parametrize("light_kind", ["point", "spot", "sun", "area_rect", "area_disk", "emissive_mesh"])
+@pytest.mark.parametrize("light_kind", ["point", "spot", "sun", "area_rect", "area_disk", "emissive_mesh", "world"])
 def test_direct_matches_cycles(light_kind):
     sc = build_scene(light_kind)
     try:
@@ -154,9 +156,10 @@ def test_direct_matches_cycles(light_kind):
         assert np.isfinite(ours).all()
         keep = ~pen
         err = metrics.relmse(ours[..., :3], ref[..., :3], mask=keep)
+        err_all = metrics.relmse(ours[..., :3], ref[..., :3])
         lit = ref[..., :3].mean() > 1e-3
-        print(f"{light_kind}: relMSE {err:.4f} over {keep.mean() * 100:.1f}% of pixels (non-penumbra); "
-              f"mean ours {ours[..., :3].mean():.4f} cycles {ref[..., :3].mean():.4f}")
+        print(f"{light_kind}: relMSE {err:.4f} over {keep.mean() * 100:.1f}% of pixels (non-penumbra), "
+              f"{err_all:.4f} over all; mean ours {ours[..., :3].mean():.4f} cycles {ref[..., :3].mean():.4f}")
         if err > THRESHOLD or not lit:
             from gi_preview.compare import imageio
 

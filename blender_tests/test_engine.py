@@ -95,7 +95,7 @@ def test_skipped_passes_reported(tmp_path):
         sc.gi_preview.samples = 1
         render_to_array(sc, tmp_path)
         skipped = {s["pass"]: s["reason"] for s in engine_mod.last_render["skipped_passes"]}
-        assert skipped == {"shadows": "no light casts shadows"}
+        assert skipped == {"shadows": "world is black; no light casts shadows"}
     finally:
         bpy.data.scenes.remove(sc)
 

@@ -3,7 +3,10 @@
 // Diffuse: exact (point/sphere/sun cosine law; polygon irradiance for area lights and
 // emissive triangles). Glossy: Monte Carlo with multiple importance sampling (light
 // sampling + GGX visible-normal sampling, power heuristic), converging over frames.
-// Reads the G-buffer; writes color, GI_Direct and Emit.
+// The world: background, and a light like any other (as in Cycles' "direct" reference):
+// uniform radiance times the lobes' albedos, shadowed by the world visibility from the
+// orthographic maps the shadow pass renders along sampled directions each frame.
+// Reads the G-buffer; writes color, GI_Direct, Emit and the world's glossy term (for SSR).
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/rng.glsl"
@@ -11,12 +14,14 @@
 #include "lib/brdf.glsl"
 #include "lib/lights.glsl"
 #include "lib/shadows.glsl"
+#include "lib/albedo.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
 layout(binding = 0, rgba32f) uniform writeonly image2D o_color;
 layout(binding = 1, rgba32f) uniform writeonly image2D o_direct;
 layout(binding = 2, rgba32f) uniform writeonly image2D o_emit;
+layout(binding = 3, rgba32f) uniform writeonly image2D o_world_spec;
 
 uniform sampler2D u_gb_albedo;
 uniform sampler2D u_gb_normal;
@@ -29,6 +34,8 @@ uniform vec3 u_world;
 uniform uint u_sample;
 uniform int u_glossy_samples;
 uniform int u_mesh_exact_max;
+uniform int u_world_first;
+uniform int u_world_count;  // 0: the world lights nothing (black, or no world views)
 
 // Glossy lobe only: f*cos and its pdf under visible-normal sampling.
 vec3 glossy_fcos(Surface s, vec3 N, vec3 V, vec3 L) { return eval_principled(s, N, V, L).glossy; }
@@ -200,6 +207,7 @@ void main() {
         imageStore(o_color, px, vec4(sanitize(u_world), 1.0));
         imageStore(o_direct, px, vec4(0.0, 0.0, 0.0, 1.0));
         imageStore(o_emit, px, vec4(0.0, 0.0, 0.0, 1.0));
+        imageStore(o_world_spec, px, vec4(0.0, 0.0, 0.0, 1.0));
         return;
     }
     int mid = int(pos.w + 0.5);
@@ -223,9 +231,18 @@ void main() {
         }
         direct += c * vis;
     }
+    vec3 world_spec = vec3(0.0);
+    if (u_world_count > 0) {
+        float vis = world_visibility(u_world_first, u_world_count, P, N, Ng);
+        float NoV = max(dot(N, V), 1e-4);
+        direct += u_world * diffuse_albedo(s, NoV) * vis;
+        world_spec = sanitize(u_world * specular_albedo(s, NoV) * vis);
+        direct += world_spec;
+    }
     direct = sanitize(direct);
     vec3 emit = sanitize(s.emission);
     imageStore(o_color, px, vec4(direct + emit, 1.0));
     imageStore(o_direct, px, vec4(direct, 1.0));
     imageStore(o_emit, px, vec4(emit, 1.0));
+    imageStore(o_world_spec, px, vec4(world_spec, 1.0));
 }

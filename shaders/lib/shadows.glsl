@@ -12,52 +12,81 @@
 layout(std430, binding = BIND_SHADOW_VIEWS) readonly buffer ShadowViewBuffer { ShadowView shadow_views[]; };
 uniform sampler2D u_shadow_atlas;
 
+// Visibility of p through shadow view i; inside = false when p is outside the view.
+float shadow_view_visibility(int i, vec3 p, vec3 ng, out bool inside) {
+    inside = false;
+    ivec2 atlas = textureSize(u_shadow_atlas, 0);
+    ShadowView sv = shadow_views[i];
+    bool ortho = sv.origin.w > 0.5;
+    float dist = ortho ? 1.0 : length(p - sv.origin.xyz);
+    float texel = sv.dir.w * dist;
+    vec3 to_light = ortho ? -sv.dir.xyz : normalize(sv.origin.xyz - p);
+    float cosg = clamp(abs(dot(ng, to_light)), 0.05, 1.0);
+    vec3 po = p + ng * texel * sv.misc.y;
+    vec4 clip = sv.view_proj * vec4(po, 1.0);
+    if (clip.w <= 0.0) return 1.0;
+    vec3 ndc = clip.xyz / clip.w;
+    if (any(greaterThan(abs(ndc.xy), vec2(1.0))) || ndc.z > 1.0) return 1.0;
+    inside = true;
+    if (ortho && ndc.z < -1.0) return 1.0;
+    float metric = ortho ? dot(po - sv.origin.xyz, sv.dir.xyz) : length(po - sv.origin.xyz);
+    float slope = sqrt(1.0 - cosg * cosg) / cosg;
+    float bias = texel * (0.3 + 0.6 * min(slope, 4.0)) + 1e-4 * metric;
+    vec2 uv = (ndc.xy * 0.5 + 0.5);
+    vec2 tile_px = sv.rect.zw * vec2(atlas);
+    vec2 base_px = sv.rect.xy * vec2(atlas);
+    vec2 px = base_px + uv * tile_px - 0.5;
+    ivec2 lo = ivec2(base_px), hi = ivec2(base_px + tile_px) - 1;
+    // 2x2 bilinear-weighted comparisons in a 3x3 neighbourhood (smooth PCF)
+    vec2 f = fract(px);
+    ivec2 ip = ivec2(floor(px));
+    float lit = 0.0, wsum = 0.0;
+    for (int dy = -1; dy <= 2; ++dy) {
+        for (int dx = -1; dx <= 2; ++dx) {
+            float wx = dx == -1 ? 1.0 - f.x : (dx == 2 ? f.x : 1.0);
+            float wy = dy == -1 ? 1.0 - f.y : (dy == 2 ? f.y : 1.0);
+            ivec2 q = clamp(ip + ivec2(dx, dy), lo, hi);
+            float stored = texelFetch(u_shadow_atlas, q, 0).r;
+            lit += wx * wy * ((metric - bias <= stored) ? 1.0 : 0.0);
+            wsum += wx * wy;
+        }
+    }
+    return lit / wsum;
+}
+
 // view_out: the index of the view that answered (-1 when none did).
 float shadow_visibility(Light L, vec3 p, vec3 ng, out int view_out) {
     view_out = -1;
     int first = int(L.shadow.x + 0.5);
     int count = int(L.shadow.y + 0.5);
     if (count <= 0 || L.axis_w.w < 0.5) return 1.0;
-    ivec2 atlas = textureSize(u_shadow_atlas, 0);
     for (int i = first; i < first + count; ++i) {
-        ShadowView sv = shadow_views[i];
-        bool ortho = sv.origin.w > 0.5;
-        float dist = ortho ? 1.0 : length(p - sv.origin.xyz);
-        float texel = sv.dir.w * dist;
-        vec3 to_light = ortho ? -sv.dir.xyz : normalize(sv.origin.xyz - p);
-        float cosg = clamp(abs(dot(ng, to_light)), 0.05, 1.0);
-        vec3 po = p + ng * texel * sv.misc.y;
-        vec4 clip = sv.view_proj * vec4(po, 1.0);
-        if (clip.w <= 0.0) continue;
-        vec3 ndc = clip.xyz / clip.w;
-        if (any(greaterThan(abs(ndc.xy), vec2(1.0))) || ndc.z > 1.0) continue;
-        view_out = i;
-        if (ortho && ndc.z < -1.0) return 1.0;
-        float metric = ortho ? dot(po - sv.origin.xyz, sv.dir.xyz) : length(po - sv.origin.xyz);
-        float slope = sqrt(1.0 - cosg * cosg) / cosg;
-        float bias = texel * (0.3 + 0.6 * min(slope, 4.0)) + 1e-4 * metric;
-        vec2 uv = (ndc.xy * 0.5 + 0.5);
-        vec2 tile_px = sv.rect.zw * vec2(atlas);
-        vec2 base_px = sv.rect.xy * vec2(atlas);
-        vec2 px = base_px + uv * tile_px - 0.5;
-        ivec2 lo = ivec2(base_px), hi = ivec2(base_px + tile_px) - 1;
-        // 2x2 bilinear-weighted comparisons in a 3x3 neighbourhood (smooth PCF)
-        vec2 f = fract(px);
-        ivec2 ip = ivec2(floor(px));
-        float lit = 0.0, wsum = 0.0;
-        for (int dy = -1; dy <= 2; ++dy) {
-            for (int dx = -1; dx <= 2; ++dx) {
-                float wx = dx == -1 ? 1.0 - f.x : (dx == 2 ? f.x : 1.0);
-                float wy = dy == -1 ? 1.0 - f.y : (dy == 2 ? f.y : 1.0);
-                ivec2 q = clamp(ip + ivec2(dx, dy), lo, hi);
-                float stored = texelFetch(u_shadow_atlas, q, 0).r;
-                lit += wx * wy * ((metric - bias <= stored) ? 1.0 : 0.0);
-                wsum += wx * wy;
-            }
+        bool inside;
+        float v = shadow_view_visibility(i, p, ng, inside);
+        if (inside) {
+            view_out = i;
+            return v;
         }
-        return lit / wsum;
     }
     return 1.0;
+}
+
+// World light: views [first, first+count) are orthographic maps along directions sampled
+// on the sphere this frame (view.dir = the direction light travels, -omega). Returns the
+// cosine-weighted visible fraction of the sampled directions above n (a ratio estimator:
+// exact for unoccluded points at any sample count); 1 when no sample is above n.
+float world_visibility(int first, int count, vec3 p, vec3 n, vec3 ng) {
+    float num = 0.0, den = 0.0;
+    for (int i = first; i < first + count; ++i) {
+        vec3 omega = -shadow_views[i].dir.xyz;
+        float c = dot(n, omega);
+        if (c <= 0.0 || dot(ng, omega) <= 0.0) continue;
+        bool inside;
+        float v = shadow_view_visibility(i, p, ng, inside);
+        num += c * v;
+        den += c;
+    }
+    return den > 0.0 ? num / den : 1.0;
 }
 
 // w(y_k) * A / F, with w the geometry term cos_x cos_y / d^2 of the sample point y_k

@@ -1,7 +1,6 @@
 // common.glsl (screen_space) — what every screen-space pass of the family shares:
-// G-buffer samplers and fetches, the diffuse/specular split of the Principled subset
-// (diffuse albedo under the specular layer, split-sum specular albedo), and per-pixel
-// rotation noise. Include after lib/common.glsl (with USE_SCENE_BUFFERS), lib/rng.glsl,
+// G-buffer samplers and fetches (the diffuse/specular albedos are in lib/albedo.glsl), and
+// per-pixel rotation noise. Include after lib/common.glsl (with USE_SCENE_BUFFERS), lib/rng.glsl,
 // lib/sampling.glsl, lib/brdf.glsl and lib/screen.glsl.
 #ifndef GI_SS_COMMON_GLSL
 #define GI_SS_COMMON_GLSL
@@ -33,24 +32,13 @@ GPixel fetch_g(ivec2 px) {
     return g;
 }
 
+#include "lib/albedo.glsl"
+
 #ifdef USE_SCENE_BUFFERS
 Surface fetch_surface(ivec2 px, int mid) {
     return make_surface(materials[mid], texelFetch(u_gb_albedo, px, 0).rgb);
 }
 
-// Lambertian reflectance under the dielectric layer (what the diffuse lobe integrates to).
-vec3 diffuse_albedo(Surface s, float NoV) {
-    return (1.0 - s.metallic) * s.base_color * (1.0 - dielectric_layer_albedo(s, NoV));
-}
-
-// Directional albedo of the glossy lobe (split-sum, with multiple-scattering compensation).
-vec3 specular_albedo(Surface s, float NoV) {
-    vec2 ab = ggx_albedo_fit(NoV, s.roughness);
-    float ess = max(ab.x + ab.y, 1e-3);
-    vec3 metal = (s.base_color * ab.x + ab.y) * (1.0 + s.base_color * (1.0 - ess) / ess);
-    vec3 diel = s.spec_tint * dielectric_layer_albedo(s, NoV);
-    return clamp(mix(diel, metal, s.metallic), 0.0, 1.0);
-}
 #endif
 
 // Far field: does direction dir from O, already open within the radius r, still see the

@@ -1,15 +1,14 @@
 // composite.comp — adds a screen-space technique's indirect light to DIRECT's colour.
-// MODE_AO (SSAO, HBAO; Mittring 2007, Bavoil et al. 2008): the ambient term the survey
-//   describes, made physical: L_in = V_world * world radiance + AO * L_amb (V_world: the
-//   AO's open directions that also stay open in the far-field march), where L_amb is a
-//   constant one-or-more-bounce estimate from the screen means (radiosity's ambient term):
-//   L_amb = B * e * sum_{k<bounces} (rho * e)^k (B mean direct-lit radiance, e mean
-//   enclosure 1-AO, rho mean diffuse albedo). Diffuse: albedo_d * L_in; glossy: the world
-//   reflected with the split-sum specular albedo, occluded by AO.
-// MODE_SSDO (Ritschel et al. 2009): diffuse albedo_d * (bounce + world * visibility),
-//   glossy world * visibility * specular albedo.
-// MODE_SSR (McGuire & Mara 2014, Stachowiak 2015): glossy = specular albedo * resolved
-//   incident radiance.
+// DIRECT already holds all direct light, the world's included (shadowed by its world-light
+// maps), so the composites add only what DIRECT lacks:
+// MODE_AO (SSAO, HBAO; Mittring 2007, Bavoil et al. 2008): the survey's ambient term, AO
+//   times a constant one-or-more-bounce estimate from the screen means (radiosity's ambient
+//   term): L_amb = B * e * sum_{k<bounces} (rho * e)^k (B mean direct-lit radiance, e mean
+//   enclosure 1-AO, rho mean diffuse albedo); diffuse: albedo_d * AO * L_amb.
+// MODE_SSDO (Ritschel et al. 2009): diffuse albedo_d * one bounce from on-screen senders.
+// MODE_SSR (McGuire & Mara 2014, Stachowiak 2015): the resolved incident radiance (hits:
+//   on-screen radiance; misses: the world) replaces DIRECT's world reflection:
+//   glossy = specular albedo * resolved - DIRECT's world glossy term.
 // Reads and writes "color" in place; writes the AO effect image (MODE_AO / MODE_SSDO).
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
@@ -24,7 +23,9 @@ layout(binding = 0, rgba32f) uniform image2D io_color;
 layout(binding = 1, rgba32f) uniform writeonly image2D o_ao;
 
 uniform sampler2D u_signal;
-uniform float u_world_specular;  // 0 when an SSR pass in the same graph owns the specular term
+#ifdef MODE_SSR
+uniform sampler2D u_world_spec;  // DIRECT's world glossy term (aov.world_spec)
+#endif
 #ifdef MODE_AO
 uniform sampler2D u_stats0;
 uniform sampler2D u_stats1;
@@ -61,18 +62,17 @@ void main() {
         for (int k = 0; k < u_ambient_bounces; ++k) { series += term; term *= rho * e; }
         Lamb = B * e * series;
     }
-    float vw = clamp(sig.g, 0.0, 1.0);   // world visibility (near AO and far field)
-    add = kd * (vw * u_world + ao * Lamb) + u_world_specular * ks * vw * u_world;
+    add = kd * ao * Lamb;
     imageStore(o_ao, px, vec4(vec3(ao), 1.0));
 #endif
 #ifdef MODE_SSDO
     float vis = clamp(sig.a, 0.0, 1.0);
-    add = kd * (max(sig.rgb, vec3(0.0)) + u_world * vis) + u_world_specular * ks * u_world * vis;
+    add = kd * max(sig.rgb, vec3(0.0));
     imageStore(o_ao, px, vec4(vec3(vis), 1.0));
 #endif
 #ifdef MODE_SSR
-    add = ks * max(sig.rgb, vec3(0.0));
+    add = ks * max(sig.rgb, vec3(0.0)) - texelFetch(u_world_spec, px, 0).rgb;
 #endif
     vec4 c = imageLoad(io_color, px);
-    imageStore(io_color, px, vec4(sanitize(c.rgb + sanitize(add)), c.a));
+    imageStore(io_color, px, vec4(sanitize(c.rgb + add), c.a));
 }

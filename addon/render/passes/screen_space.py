@@ -28,6 +28,7 @@ from .gbuffer import ALBEDO, GEONORMAL, MOTION, NORMAL, POSITION
 
 HIZ = "ss.hiz"
 DIRECT_RADIANCE = "aov.direct"  # reflected direct light (no emission), written by direct_light
+WORLD_SPEC = "aov.world_spec"  # DIRECT's world glossy term, replaced by SSR
 COLOR = "color"
 
 
@@ -313,8 +314,6 @@ class CompositePass(ScreenPass):
 
     params = (
         Param("ambient_bounces", 1, 0, 8, "AO modes: bounces of the constant indirect term (0 = world only)"),
-        Param("world_specular", True, doc="AO/SSDO modes: add the occluded world reflection (off when an SSR "
-                                          "pass in the same graph owns the specular term)"),
     )
 
     def __init__(self, quality=None, *, mode: str, signal: str, ao_output: str | None = None, **kw):
@@ -323,6 +322,8 @@ class CompositePass(ScreenPass):
         reads = [signal, COLOR, ALBEDO, NORMAL, POSITION, GEONORMAL]
         if mode == "AO":
             reads += [STATS0, STATS1]
+        if mode == "SSR":
+            reads += [WORLD_SPEC]
         self.reads = tuple(reads)
         self.writes = (COLOR,) + ((ao_output,) if ao_output else ())
 
@@ -341,7 +342,8 @@ class CompositePass(ScreenPass):
             units.tex(prog, "u_stats1", res[STATS1])
             set_uniform(prog, "u_stats_lod", float(int(math.floor(math.log2(max(rc.size))))))
             set_uniform(prog, "u_ambient_bounces", int(self["ambient_bounces"]))
-        set_uniform(prog, "u_world_specular", 1.0 if self["world_specular"] else 0.0)
+        if self.mode == "SSR":
+            units.tex(prog, "u_world_spec", res[WORLD_SPEC])
         bind_gbuffer(rc, prog, units)
         res[COLOR].bind_to_image(0, read=True, write=True)
         if self.ao_output:

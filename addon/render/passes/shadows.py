@@ -18,7 +18,17 @@ from ..framegraph import Effect, Param, Pass
 from ..gpu_scene import LIGHT_MESH, set_uniform
 from ..scene_data import LightType
 
-ATLAS, VIEWS = "shadow.atlas", "shadow.views"
+ATLAS, VIEWS, WORLD_RANGE = "shadow.atlas", "shadow.views", "shadow.world_range"
+
+
+class WorldRange:
+    """(first, count) of this frame's world-light views in the view table (a resource)."""
+
+    def __init__(self, first: int = 0, count: int = 0):
+        self.first, self.count = first, count
+
+    def release(self):
+        pass
 VIEW_FLOATS = 32
 MAX_ATLAS = 8192
 
@@ -67,18 +77,19 @@ class ShadowPass(Pass):
     """Renders the shadow atlas and the view table for every light that casts shadows."""
 
     name = "shadows"
-    provides = frozenset({Effect.SHADOWS})
-    writes = (ATLAS, VIEWS)
+    provides = frozenset({Effect.SHADOWS, Effect.ENVIRONMENT})
+    writes = (ATLAS, VIEWS, WORLD_RANGE)
     params = (
         Param("shadow_resolution", 512, 64, 4096, "texels per side of one cube face / cascade"),
         Param("cascades", 3, 1, 4, "sun cascades"),
         Param("normal_offset", 1.5, 0.0, 8.0, "normal offset in texels"),
+        Param("world_directions", 8, 0, 64, "world light: directions (orthographic maps) sampled per frame"),
     )
     quality_ladder = (
-        {"shadow_resolution": 256, "cascades": 2},
-        {"shadow_resolution": 512, "cascades": 3},
-        {"shadow_resolution": 1024, "cascades": 3},
-        {"shadow_resolution": 2048, "cascades": 4},
+        {"shadow_resolution": 256, "cascades": 2, "world_directions": 4},
+        {"shadow_resolution": 512, "cascades": 3, "world_directions": 8},
+        {"shadow_resolution": 1024, "cascades": 3, "world_directions": 16},
+        {"shadow_resolution": 2048, "cascades": 4, "world_directions": 24},
     )
 
     def __init__(self, quality=None, **props):
@@ -181,6 +192,21 @@ class ShadowPass(Pass):
             for fwd, up in CUBE_DIRS:
                 vp = proj @ look_at(origin, fwd, up)
                 views.append((rec["index"], vp, origin, 0, normal, texel, far))
+        # world light: orthographic maps along directions stratified on the sphere, rotated
+        # every frame (frame 0 included: a fixed, well-spread set)
+        K = int(self["world_directions"]) if float(np.max(scene.world.color)) > 0 else 0
+        if K:
+            jx, jy = _halton(frame.index + 1, 2), _halton(frame.index + 1, 3)
+            for k in range(K):
+                u1 = (k + jx) / K
+                u2 = (k * 0.61803398875 + jy) % 1.0
+                z = 1.0 - 2.0 * u1
+                r = math.sqrt(max(0.0, 1.0 - z * z))
+                omega = np.array([r * math.cos(2 * math.pi * u2), r * math.sin(2 * math.pi * u2), z])
+                d = -omega  # the direction light travels
+                eye = center - d * (2.0 * radius)
+                vp = ortho(radius * 1.02, 0.0, 4.0 * radius) @ look_at(eye, d, (0, 0, 1))
+                views.append(("world", vp, eye, 1, d, 2.0 * radius * 1.02 / res, 4.0 * radius))
         return views
 
     def _cascades(self, rc, cam, d, center, radius, res):
@@ -242,7 +268,9 @@ class ShadowPass(Pass):
         return cols, res
 
     def _dynamic(self, scene) -> bool:
-        """Does any view change from frame to frame (lights with size)?"""
+        """Does any view change from frame to frame (lights with size, the world light)?"""
+        if int(self["world_directions"]) > 0 and float(np.max(scene.world.color)) > 0:
+            return True
         for L in scene.lights:
             if L.type in (LightType.POINT, LightType.SPOT) and L.radius > 0:
                 return True
@@ -303,9 +331,13 @@ class ShadowPass(Pass):
         lights = rc.scene.light_array.copy()
         lights[:, 24:26] = 0
         for li, (first, count) in light_views.items():
+            if li == "world":
+                continue
             lights[li, 24] = first
             lights[li, 25] = count
         rc.scene.light_buf.write(lights.tobytes())
+        first, count = light_views.pop("world", (0, 0))
+        rc.resources[WORLD_RANGE] = WorldRange(first, count)
         self._static_key = key
 
     def release(self):

@@ -5,8 +5,9 @@ bounce from on-screen senders), then SSR's (glossy reflections), merged by pass 
 G-buffer, shadow and direct-light passes are shared). The planner runs only the passes
 whose effects the scene calls for: a scene with no glossy surface in view skips the SSR
 passes ("no glossy surface in view"), an unlit scene skips the SSDO passes, a scene whose
-lights cast no shadow skips the shadow pass — each reported with its reason. When SSR is in
-the graph it owns the specular term, so SSDO's composite adds no world reflection of its own.
+lights cast no shadow skips the shadow pass — each reported with its reason. DIRECT lights
+with the world (shadowed); SSDO adds one diffuse bounce; SSR replaces DIRECT's world
+reflection by what the reflected rays find on screen.
 
 Quality: the same level for every member technique. Compared with: Cycles "one_bounce"
 (and "full"). Screen-space limits apply (see SSDO.md, SSR.md).
@@ -52,9 +53,4 @@ class Auto(Technique):
 
     def passes(self, quality):
         groups = [m().passes(quality) for m in self._members()]
-        merged = merge_passes(groups)
-        if any(p.name.startswith("ssr") for p in merged):
-            for p in merged:
-                if p.name.endswith("_composite") and not p.name.startswith("ssr"):
-                    p.set_properties({"world_specular": False})
-        return merged
+        return merge_passes(groups)

@@ -4,7 +4,11 @@ Passes: ``gbuffer`` (raster) → ``shadows`` (shadow atlas) → ``direct_light``
 Every light type in Cycles' units; diffuse terms are exact (cosine law, polygon
 irradiance), glossy terms are Monte Carlo with MIS and converge over ``samples`` frames,
 as do soft shadows (the shadow views move over the light's surface each frame) and
-anti-aliasing (box-filter jitter). The world is background only (no ambient light).
+anti-aliasing (box-filter jitter). The world is the background and, like in Cycles'
+"direct" reference, a light: uniform radiance times each lobe's albedo, shadowed by the
+visibility of ``world_directions`` orthographic maps per frame (directions stratified on
+the sphere, rotated every frame; a cosine-weighted ratio estimator, exact for unoccluded
+points). No indirect light.
 
 | parameter | range | meaning |
 |---|---|---|
@@ -12,8 +16,10 @@ anti-aliasing (box-filter jitter). The world is background only (no ambient ligh
 | cascades | 1–4 | sun cascades |
 | glossy_samples | 1–16 | light+BSDF sample pairs per light per pixel per frame |
 | mesh_exact_max | 0–256 | emissive meshes with at most this many triangles are integrated exactly |
+| world_directions | 0–64 | world-light visibility maps per frame |
 
-Quality ladder: 0 = 256 px shadows, 1 glossy sample; 1 = 512 px, 2; 2 = 1024 px, 4; 3 = 2048 px, 8.
+Quality ladder (shadow px, glossy samples, world directions): 0 = 256, 1, 4; 1 = 512, 2, 8;
+2 = 1024, 4, 16; 3 = 2048, 8, 24.
 Compared with: Cycles with all bounces off (direct light only).
 """
 from __future__ import annotations
@@ -23,10 +29,10 @@ import numpy as np
 from ..framegraph import Effect, Param, Pass
 from ..gpu_scene import set_uniform
 from ..passes.gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION, GBufferPass
-from ..passes.shadows import ATLAS, VIEWS, ShadowPass
+from ..passes.shadows import ATLAS, VIEWS, WORLD_RANGE, ShadowPass
 from . import Technique, register
 
-COLOR, AOV_DIRECT, AOV_EMIT = "color", "aov.direct", "aov.emit"
+COLOR, AOV_DIRECT, AOV_EMIT, WORLD_SPEC = "color", "aov.direct", "aov.emit", "aov.world_spec"
 
 
 class DirectLightPass(Pass):
@@ -34,8 +40,8 @@ class DirectLightPass(Pass):
     provides = frozenset({Effect.DIRECT, Effect.EMISSION, Effect.ENVIRONMENT})
     always = True  # produces the colour every technique builds on
     reads = (ALBEDO, NORMAL, POSITION, GEONORMAL)
-    optional_reads = (ATLAS, VIEWS)  # without shadow-casting lights the shadow pass is skipped
-    writes = (COLOR, AOV_DIRECT, AOV_EMIT)
+    optional_reads = (ATLAS, VIEWS, WORLD_RANGE)  # the shadow pass runs only if something casts shadows
+    writes = (COLOR, AOV_DIRECT, AOV_EMIT, WORLD_SPEC)
     params = (
         Param("glossy_samples", 2, 1, 16, "light+BSDF sample pairs per light per pixel per frame"),
         Param("mesh_exact_max", 64, 0, 256, "emissive meshes up to this many triangles are integrated exactly"),
@@ -46,6 +52,7 @@ class DirectLightPass(Pass):
         rc.texture(COLOR, 4, "f4")
         rc.texture(AOV_DIRECT, 4, "f4")
         rc.texture(AOV_EMIT, 4, "f4")
+        rc.texture(WORLD_SPEC, 4, "f4")
 
     def execute(self, rc, frame):
         prog = rc.programs.compute("direct/direct.comp")
@@ -67,9 +74,14 @@ class DirectLightPass(Pass):
         set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
         set_uniform(prog, "u_glossy_samples", int(self["glossy_samples"]))
         set_uniform(prog, "u_mesh_exact_max", int(self["mesh_exact_max"]))
+        wr = res.get(WORLD_RANGE)
+        world_on = wr is not None and wr.count > 0 and float(max(rc.scene.scene.world.color)) > 0
+        set_uniform(prog, "u_world_first", int(wr.first) if world_on else 0)
+        set_uniform(prog, "u_world_count", int(wr.count) if world_on else 0)
         res[COLOR].bind_to_image(0, read=False, write=True)
         res[AOV_DIRECT].bind_to_image(1, read=False, write=True)
         res[AOV_EMIT].bind_to_image(2, read=False, write=True)
+        res[WORLD_SPEC].bind_to_image(3, read=False, write=True)
         rc.dispatch(prog, *rc.groups(8))
 
 
