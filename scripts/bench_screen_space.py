@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
-"""Screen-space family (SSAO, HBAO, SSDO, SSR) against Cycles on the demo scenes.
+"""Screen-space family (SSAO, HBAO, SSDO, SSR) and AUTO against Cycles on the demo scenes.
 
     .venv/bin/python scripts/bench_screen_space.py [--scenes cornell,glossy_spheres]
-        [--techniques SSAO,HBAO,SSDO,SSR] [--quality 0,1,2,3] [--res 96] [--ref-spp 256]
+        [--techniques SSAO,HBAO,SSDO,SSR,AUTO] [--quality 0,1,2,3] [--res 96] [--ref-spp 256]
         [--samples 16] [--curve 1,2,4,8,16,32,64] [--out docs/techniques/img] [--cache DIR]
 
 For every scene: Cycles references "ao" (AO node, distance 1 = the AO techniques' default
@@ -14,7 +14,9 @@ frame, and time x samples for the accumulated image). Measured:
 * AO techniques (SSAO, HBAO; SSDO's visibility too): the ``GI_AO`` AOV vs Cycles "ao"
   (relMSE, FLIP, SSIM) and the equal-error speed-up against Cycles' AO curve;
 * every technique (and DIRECT as the baseline): Combined vs "one_bounce" and "full";
-  SSR/SSDO and the AO techniques' equal-error speed-up against Cycles' one_bounce curve.
+  SSR/SSDO and the AO techniques' equal-error speed-up against Cycles' one_bounce curve;
+* AUTO (DIRECT + SSDO + SSR planned per scene) the same way, with the passes the planner
+  skipped and why (``skipped_passes``).
 
 Writes ``<out>/<scene>_<TECH>_q<Q>.png`` (ours), ``<scene>_cycles_<kind>.png``,
 ``<scene>_<TECH>_q<Q>_vs_<kind>_error.png`` (relMSE heat map), the AO images, and
@@ -53,7 +55,7 @@ def log(msg):
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--scenes", default="cornell,glossy_spheres,sunlit_room")
-    p.add_argument("--techniques", default="SSAO,HBAO,SSDO,SSR")
+    p.add_argument("--techniques", default="SSAO,HBAO,SSDO,SSR,AUTO")
     p.add_argument("--quality", default="1")
     p.add_argument("--res", type=int, default=96)
     p.add_argument("--ref-spp", type=int, default=256)

@@ -7,8 +7,9 @@
 //   enclosure 1-AO, rho mean diffuse albedo); diffuse: albedo_d * AO * L_amb.
 // MODE_SSDO (Ritschel et al. 2009): diffuse albedo_d * one bounce from on-screen senders.
 // MODE_SSR (McGuire & Mara 2014, Stachowiak 2015): the resolved incident radiance (hits:
-//   on-screen radiance; misses: the world) replaces DIRECT's world reflection:
-//   glossy = specular albedo * resolved - DIRECT's world glossy term.
+//   on-screen radiance; misses: the world) replaces DIRECT's world reflection where SSR
+//   traced (signal a = 1, filtered: a blends): glossy = specular albedo * resolved -
+//   a * DIRECT's world glossy term; elsewhere (a = 0: too rough) DIRECT's term stays.
 // Reads and writes "color" in place; writes the AO effect image (MODE_AO / MODE_SSDO).
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
@@ -71,7 +72,7 @@ void main() {
     imageStore(o_ao, px, vec4(vec3(vis), 1.0));
 #endif
 #ifdef MODE_SSR
-    add = ks * max(sig.rgb, vec3(0.0)) - texelFetch(u_world_spec, px, 0).rgb;
+    add = ks * max(sig.rgb, vec3(0.0)) - clamp(sig.a, 0.0, 1.0) * texelFetch(u_world_spec, px, 0).rgb;
 #endif
     vec4 c = imageLoad(io_color, px);
     imageStore(io_color, px, vec4(sanitize(c.rgb + add), c.a));

@@ -7,8 +7,7 @@
 // the cosine-weighted visible arc between the two horizons analytically against the normal
 // projected into the slice (GTAO's inner integral). The slices' average is the cosine-
 // weighted visibility within the radius, the quantity Cycles' AO node computes.
-// World visibility (g): AO times the fraction of directions that stay open past the radius
-// (far_blocker, common.glsl). Output (at u_scale): r = b = AO, g = world visibility, a = 1.
+// Output (at u_scale of the full resolution): rgb = AO, a = 1.
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/rng.glsl"
@@ -93,20 +92,5 @@ void main() {
         vis += nlen * a;
     }
     float ao = clamp(vis / float(nd), 0.0, 1.0);
-    // world visibility: AO times the fraction of cosine-distributed directions that stay
-    // open past the radius (far_blocker, common.glsl)
-    float far_open = 1.0;
-    if (u_far_points > 0) {
-        far_open = 0.0;
-        vec3 Ow = g.P + g.Ng * u_bias;
-        for (int d = 0; d < nd; ++d) {
-            float u1 = (float(d) + rnd.z) / float(nd);
-            float phi = TWO_PI * fract(float(d) * 0.618034 + rnd.w);
-            vec2 dsk = sqrt(u1) * vec2(cos(phi), sin(phi));
-            vec3 dir = to_world(vec3(dsk, sqrt(max(0.0, 1.0 - dot(dsk, dsk)))), g.N);
-            if (far_blocker(Ow, dir, u_radius, rnd.y).x < 0) far_open += 1.0;
-        }
-        far_open /= float(nd);
-    }
-    imageStore(o_ao, q, vec4(ao, ao * far_open, ao, 1.0));
+    imageStore(o_ao, q, vec4(vec3(ao), 1.0));
 }

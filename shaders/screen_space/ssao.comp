@@ -11,9 +11,7 @@
 // occluders whose depth differs from the point's by more than the radius (no halos from
 // far-away foreground). A direction is occluded if any of its points is. AO = 1 - occluded
 // fraction (cosine-weighted, as Cycles' AO); 1 on the background.
-// World visibility (g): directions open within the radius are marched further
-// (far_blocker, common.glsl); those that meet an on-screen surface do not see the world.
-// Output (at u_scale of the full resolution): r = b = AO, g = world visibility, a = 1.
+// Output (at u_scale of the full resolution): rgb = AO, a = 1.
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/rng.glsl"
@@ -46,13 +44,12 @@ void main() {
     float rot = TWO_PI * rnd.x;
     float cr = cos(rot), sr = sin(rot);
     float occ = 0.0;
-    float world_open = 0.0;
     int n = max(u_samples, 1);
     int m = max(u_points, 1);
     for (int i = 0; i < n; ++i) {
         // stratified cosine-weighted direction (golden-angle spiral), rotated per pixel
         float u1 = (float(i) + rnd.y) / float(n);
-        float phi = float(i) * 2.39996323 ;
+        float phi = float(i) * 2.39996323;
         vec2 dsk = sqrt(u1) * vec2(cos(phi), sin(phi));
         dsk = vec2(cr * dsk.x - sr * dsk.y, sr * dsk.x + cr * dsk.y);
         vec3 dir = to_world(vec3(dsk, sqrt(max(0.0, 1.0 - dot(dsk, dsk)))), N);
@@ -75,8 +72,7 @@ void main() {
             }
         }
         occ += o;
-        if (o < 1.0 && far_blocker(O, dir, u_radius, fract(s + 0.5)).x < 0) world_open += 1.0 - o;
     }
     float ao = clamp(1.0 - occ / float(n), 0.0, 1.0);
-    imageStore(o_ao, q, vec4(ao, world_open / float(n), ao, 1.0));
+    imageStore(o_ao, q, vec4(vec3(ao), 1.0));
 }

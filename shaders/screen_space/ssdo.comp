@@ -3,18 +3,18 @@
 // image space").
 // For u_samples cosine-distributed directions around the normal (rotated per pixel and
 // frame), a point at a random distance within the radius is projected to the screen.
-// Not occluded (in front of the G-buffer surface there): the direction sees the
-// environment, here the uniform world radiance (directional occlusion of the world light).
-// Occluded: the G-buffer pixel that hides the point is a small sender; its radiance is
-// the direct-lit colour buffer (aov.direct: reflected direct light, without emission,
-// which DIRECT already counts), received if the sender faces the receiver. The estimator
-// is the cosine-weighted mean of incident radiance, so the diffuse bounce is
-// albedo_d * mean(L_in): bounded by the brightest on-screen sender.
+// Occluded (behind the G-buffer surface there): the G-buffer pixel that hides the point is
+// a small sender; its radiance is the direct-lit colour buffer (aov.direct: reflected
+// direct light, without emission, which DIRECT already counts), received if the sender
+// faces the receiver. The estimator is the cosine-weighted mean of incident radiance, so
+// the diffuse bounce is albedo_d * mean(L_in): bounded by the brightest on-screen sender.
+// Not occluded: the direction is open (DIRECT already lights with the world, shadowed by
+// its world-light maps, so an open direction adds nothing here).
 // Far field (an extension of the paper's near-field samples): a direction open within the
 // radius is marched further (far_blocker, common.glsl); a surface met there is a sender
-// too, so enclosed rooms do not see the world through their walls.
+// too, so the bounce from walls beyond the radius (a room's far side) is not lost.
 // Output (at u_scale of the full resolution): rgb = mean sender radiance over all samples,
-// a = cosine-weighted fraction of unblocked directions (the world's visibility).
+// a = cosine-weighted fraction of directions that stay open (the GI_AO AOV).
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/rng.glsl"
@@ -56,7 +56,7 @@ void main() {
         float s = fract(float(i) * 0.618034 + rnd.z);
         vec3 S = O + dir * (u_radius * mix(0.1, 1.0, s));
         vec2 sp = to_pixel(S);
-        if (!on_screen(sp)) { open += 1.0; continue; }   // unknown: screen space sees the world
+        if (!on_screen(sp)) { open += 1.0; continue; }   // unknown to screen space: open
         ivec2 hp = ivec2(sp);
         GPixel h = fetch_g(hp);
         if (!h.valid) { open += 1.0; continue; }
@@ -69,7 +69,7 @@ void main() {
             bounce += facing * texelFetch(u_radiance, hp, 0).rgb;
         } else {
             // open within the radius: march further (far field); a surface met there is
-            // the sender, otherwise the direction sees the world
+            // the sender, otherwise the direction stays open
             ivec2 fp = far_blocker(O, dir, u_radius, fract(s + 0.5));
             if (fp.x < 0) {
                 open += 1.0;

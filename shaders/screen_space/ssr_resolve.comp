@@ -6,9 +6,12 @@
 // times cosine divided by the pdf the neighbour drew its ray with; missed rays use the
 // neighbour's direction and the fallback (the uniform world radiance). The weighted mean of
 // the incident radiance is the demodulated reflection; the composite multiplies it by the
-// split-sum specular albedo. Radiance at hits is aov.direct (reflected direct light; the
-// emission of hit emitters is already in DIRECT's glossy term), so this is one bounce.
-// Output: rgb = demodulated specular incident radiance, a = 1 (0 where no glossy lobe).
+// specular albedo and subtracts DIRECT's world glossy term, which it replaces. Radiance at
+// hits is aov.direct (reflected direct light; the emission of hit emitters is already in
+// DIRECT's glossy term), so this is one bounce.
+// Output: rgb = demodulated specular incident radiance, a = 1 where SSR replaces DIRECT's
+// world reflection; 0 (rgb 0) where there is no glossy lobe or the surface is rougher than
+// u_max_roughness (DIRECT's shadowed world reflection is kept there).
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/rng.glsl"
@@ -37,7 +40,7 @@ void main() {
     vec3 N = g.N;
     float NoV = max(dot(N, V), 1e-4);
     if (max3(specular_albedo(s, NoV)) < 1e-4) { imageStore(o_spec, px, vec4(0.0)); return; }
-    if (s.roughness > u_max_roughness) { imageStore(o_spec, px, vec4(sanitize(u_world), 1.0)); return; }
+    if (s.roughness > u_max_roughness) { imageStore(o_spec, px, vec4(0.0)); return; }
     ivec2 rsize = textureSize(u_ray0, 0);
     vec2 scale = vec2(rsize) / u_resolution;
     ivec2 qc = min(ivec2((vec2(px) + 0.5) * scale), rsize - 1);

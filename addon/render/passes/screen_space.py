@@ -313,7 +313,7 @@ class CompositePass(ScreenPass):
     """color += the technique's indirect light (see composite.comp for each mode)."""
 
     params = (
-        Param("ambient_bounces", 1, 0, 8, "AO modes: bounces of the constant indirect term (0 = world only)"),
+        Param("ambient_bounces", 1, 0, 8, "AO modes: bounces of the constant indirect term (0 = none)"),
     )
 
     def __init__(self, quality=None, *, mode: str, signal: str, ao_output: str | None = None, **kw):

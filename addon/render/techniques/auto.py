@@ -1,7 +1,7 @@
 """AUTO: one graph holding the cheapest passes that can cover every effect, planned per scene.
 
-The graph is DIRECT's passes, then SSDO's (ambient occlusion, world light, one diffuse
-bounce from on-screen senders), then SSR's (glossy reflections), merged by pass name (the
+The graph is DIRECT's passes, then SSDO's (ambient occlusion, one diffuse bounce from
+on-screen senders), then SSR's (glossy reflections), merged by pass name (the
 G-buffer, shadow and direct-light passes are shared). The planner runs only the passes
 whose effects the scene calls for: a scene with no glossy surface in view skips the SSR
 passes ("no glossy surface in view"), an unlit scene skips the SSDO passes, a scene whose

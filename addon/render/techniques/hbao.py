@@ -15,8 +15,12 @@ radius, GTAO's analytic cosine-weighted arc integral) → ``hbao_temporal`` → 
 | falloff | 0–1 | fraction of the radius over which occluders fade |
 | bias | 0–1 | normal offset in scene units |
 | scale | 0.25–1 | resolution scale of the AO pass |
+| blur_radius | 0–8 | bilateral kernel radius (pixels) |
+| max_history | 1–1024 | temporal frames averaged at most |
+| ambient_bounces | 0–8 | bounces of the constant indirect term (0 = none: DIRECT only) |
 
-Quality ladder (directions, steps, scale): 0 = 2, 4, 0.5; 1 = 4, 6, 1; 2 = 6, 10, 1; 3 = 8, 16, 1.
+Quality ladder (directions, steps, scale, blur): 0 = 2, 4, 0.5, 3; 1 = 4, 6, 1, 2; 2 = 6, 10, 1, 2;
+3 = 8, 16, 1, 1.
 """
 from __future__ import annotations
 
@@ -27,7 +31,7 @@ from ..passes.screen_space import ao_chain
 from ..passes.shadows import ShadowPass
 from . import Technique, register
 from .direct import DirectLightPass
-from .ssao import FAR_PARAMS, AO_PROVIDES, BLUR, AOPass, _q
+from .ssao import AO_PROVIDES, BLUR, AOPass, _q
 
 
 class HBAOPass(AOPass):
@@ -41,7 +45,6 @@ class HBAOPass(AOPass):
         Param("falloff", 0.1, 0.0, 1.0, "fraction of the radius over which occluders fade out"),
         Param("bias", 0.005, 0.0, 1.0, "normal offset (scene units)"),
         Param("scale", 1.0, 0.25, 1.0, "resolution scale"),
-        *FAR_PARAMS,
     )
     quality_ladder = ({"directions": 2, "steps": 4, "scale": 0.5}, {"directions": 4, "steps": 6, "scale": 1.0},
                       {"directions": 6, "steps": 10, "scale": 1.0}, {"directions": 8, "steps": 16, "scale": 1.0})
@@ -58,7 +61,7 @@ class HBAOPass(AOPass):
 class HBAO(Technique):
     id = "HBAO"
     label = "HBAO (GTAO)"
-    description = "Horizon-based AO, cosine-weighted (GTAO form), times a world + constant indirect ambient"
+    description = "Horizon-based AO, cosine-weighted (GTAO form), times a constant indirect ambient, added to DIRECT"
     family = "screen_space"
     reference = "one_bounce"
     cost_rank = 12

@@ -6,12 +6,12 @@ hemisphere kernel, per-pixel rotation, range check; at ``scale`` of the resoluti
 (depth/normal-aware bilateral) → ``ssao_ambient_stats`` → ``ssao_composite``.
 
 What is added to DIRECT (docs/techniques/SSAO.md): the survey's "ambient term times AO",
-with a physical ambient: ``albedo_d * (V_world * world radiance + AO * L_amb) +
-spec_albedo * V_world * world``, V_world = the AO directions that also stay open in a
-far-field march (so a room does not see the sky through its walls), where ``L_amb`` is a constant indirect estimate from the screen means (radiosity's
-ambient term: mean direct-lit radiance x mean enclosure within the AO radius x a geometric
-series over ``ambient_bounces``). The AO itself is the ``GI_AO`` AOV, comparable with
-Cycles' AO at distance ``radius`` (reference kind "ao").
+with a physical ambient: ``albedo_d * AO * L_amb``, where ``L_amb`` is a constant indirect
+estimate from the screen means (radiosity's ambient term: mean direct-lit radiance x mean
+enclosure within the AO radius x a geometric series over ``ambient_bounces``). DIRECT
+already lights with the world (shadowed by its world-light maps), so no world term is
+added here. The AO itself is the ``GI_AO`` AOV, comparable with Cycles' AO at distance
+``radius`` (reference kind "ao").
 
 | parameter | range | meaning |
 |---|---|---|
@@ -22,16 +22,12 @@ Cycles' AO at distance ``radius`` (reference kind "ao").
 | scale | 0.25–1 | resolution scale of the AO pass |
 | blur_radius | 0–8 | bilateral kernel radius (pixels) |
 | max_history | 1–1024 | temporal frames averaged at most |
-| ambient_bounces | 0–8 | bounces of the constant indirect term (0 = world only) |
-| far_points | 0–32 | far-field march points for the world's visibility (0 = the AO radius only) |
-| far_distance | 0–1e4 | far-field march length (0 = the scene's bounding diagonal) |
+| ambient_bounces | 0–8 | bounces of the constant indirect term (0 = none: DIRECT only) |
 
 Quality ladder (samples, points, scale, blur): 0 = 4, 2, 0.5, 3; 1 = 8, 3, 1, 2; 2 = 16, 4, 1, 2;
 3 = 32, 6, 1, 1.
 """
 from __future__ import annotations
-
-import numpy as np
 
 from ..framegraph import Effect, Param
 from ..gpu_scene import set_uniform
@@ -42,10 +38,6 @@ from . import Technique, register
 from .direct import DirectLightPass
 
 AO_PROVIDES = frozenset({Effect.AO, Effect.INDIRECT_DIFFUSE})
-FAR_PARAMS = (
-    Param("far_points", 6, 0, 32, "far-field march points deciding world visibility (0 = radius only)"),
-    Param("far_distance", 0.0, 0.0, 1e4, "far-field march length (0 = the scene's bounding diagonal)"),
-)
 BLUR = ({"blur_radius": 3}, {"blur_radius": 2}, {"blur_radius": 2}, {"blur_radius": 1})
 
 
@@ -69,20 +61,11 @@ class AOPass(ScreenPass):
     def set_uniforms(self, prog):
         raise NotImplementedError
 
-    def set_far(self, rc, prog):
-        far = float(self["far_distance"])
-        if far <= 0.0:
-            lo, hi = rc.scene.scene.world_bounds()
-            far = max(float(np.linalg.norm(np.asarray(hi) - np.asarray(lo))), 1e-3)
-        set_uniform(prog, "u_far_distance", far)
-        set_uniform(prog, "u_far_points", int(self["far_points"]))
-
     def execute(self, rc, frame):
         prog = self.program(rc, self.shader)
         bind_frame(rc, prog, frame)
         bind_gbuffer(rc, prog, Units(1))
         self.set_uniforms(prog)
-        self.set_far(rc, prog)
         size = self.out_size(rc)
         rc.texture(self.writes[0], 4, "f2", size=size).bind_to_image(0, read=False, write=True)
         self.run(rc, prog, size)
@@ -98,7 +81,6 @@ class SSAOPass(AOPass):
         Param("radius", 1.0, 0.01, 100.0, "AO distance (scene units), as Cycles' AO distance"),
         Param("bias", 0.01, 0.0, 1.0, "depth bias and normal offset (scene units)"),
         Param("scale", 1.0, 0.25, 1.0, "resolution scale"),
-        *FAR_PARAMS,
     )
     quality_ladder = ({"samples": 4, "points": 2, "scale": 0.5}, {"samples": 8, "points": 3, "scale": 1.0},
                       {"samples": 16, "points": 4, "scale": 1.0}, {"samples": 32, "points": 6, "scale": 1.0})
@@ -118,7 +100,7 @@ def _q(quality, table):
 class SSAO(Technique):
     id = "SSAO"
     label = "SSAO"
-    description = "Screen-space ambient occlusion times a world + constant indirect ambient term"
+    description = "Screen-space ambient occlusion times a constant indirect ambient term, added to DIRECT"
     family = "screen_space"
     reference = "one_bounce"
     cost_rank = 10

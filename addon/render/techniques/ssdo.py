@@ -1,11 +1,12 @@
 """SSDO: screen-space directional occlusion with one indirect bounce (Ritschel et al. 2009).
 
-Passes: DIRECT's three → ``ssdo`` (hemisphere point samples around the normal; unblocked
-directions see the world, blocked ones receive the direct-lit radiance ``aov.direct`` of
-the pixel that blocks them when it faces the receiver) → ``ssdo_temporal`` → ``ssdo_blur``
-→ ``ssdo_composite`` (``color += albedo_d * (bounce + world * visibility) + spec_albedo *
-world * visibility``). The directional visibility is the ``GI_AO`` AOV. Compared with Cycles
-"one_bounce" (and "full"). See docs/techniques/SSDO.md.
+Passes: DIRECT's three → ``ssdo`` (hemisphere point samples around the normal; blocked
+directions receive the direct-lit radiance ``aov.direct`` of the pixel that blocks them
+when it faces the receiver; directions open within the radius are marched further and a
+surface met there sends too) → ``ssdo_temporal`` → ``ssdo_blur`` → ``ssdo_composite``
+(``color += albedo_d * bounce``; DIRECT already lights with the world, shadowed by its
+world-light maps). The fraction of directions that stay open is the ``GI_AO`` AOV.
+Compared with Cycles "one_bounce" (and "full"). See docs/techniques/SSDO.md.
 
 | parameter | range | meaning |
 |---|---|---|
@@ -13,10 +14,17 @@ world * visibility``). The directional visibility is the ``GI_AO`` AOV. Compared
 | radius | 0.01–100 | sample radius in scene units |
 | bias | 0–1 | depth bias / normal offset in scene units |
 | scale | 0.25–1 | resolution scale of the SSDO pass |
+| far_points | 0–32 | far-field march points past the radius (0 = the radius only) |
+| far_distance | 0–1e4 | far-field march length (0 = the scene's bounding diagonal) |
+| blur_radius | 0–8 | bilateral kernel radius (pixels) |
+| max_history | 1–1024 | temporal frames averaged at most |
 
-Quality ladder (samples, radius, scale): 0 = 4, 1.0, 0.5; 1 = 8, 1.5, 1; 2 = 16, 2.0, 1; 3 = 32, 2.5, 1.
+Quality ladder (samples, radius, scale, blur): 0 = 4, 1.0, 0.5, 3; 1 = 8, 1.5, 1, 2;
+2 = 16, 2.0, 1, 2; 3 = 32, 2.5, 1, 1.
 """
 from __future__ import annotations
+
+import numpy as np
 
 from ..framegraph import Effect, Param
 from ..gpu_scene import set_uniform
@@ -25,9 +33,13 @@ from ..passes.screen_space import DIRECT_RADIANCE, Units, ao_chain, bind_frame, 
 from ..passes.shadows import ShadowPass
 from . import Technique, register
 from .direct import DirectLightPass
-from .ssao import FAR_PARAMS, BLUR, AOPass, _q
+from .ssao import BLUR, AOPass, _q
 
 SSDO_PROVIDES = frozenset({Effect.AO, Effect.INDIRECT_DIFFUSE})
+FAR_PARAMS = (
+    Param("far_points", 6, 0, 32, "far-field march points past the radius (0 = radius only)"),
+    Param("far_distance", 0.0, 0.0, 1e4, "far-field march length (0 = the scene's bounding diagonal)"),
+)
 
 
 class SSDOPass(AOPass):
@@ -55,7 +67,12 @@ class SSDOPass(AOPass):
         bind_gbuffer(rc, prog, units)
         units.tex(prog, "u_radiance", rc.resources[DIRECT_RADIANCE])
         self.set_uniforms(prog)
-        self.set_far(rc, prog)
+        far = float(self["far_distance"])
+        if far <= 0.0:
+            lo, hi = rc.scene.scene.world_bounds()
+            far = max(float(np.linalg.norm(np.asarray(hi) - np.asarray(lo))), 1e-3)
+        set_uniform(prog, "u_far_distance", far)
+        set_uniform(prog, "u_far_points", int(self["far_points"]))
         size = self.out_size(rc)
         rc.texture(self.writes[0], 4, "f2", size=size).bind_to_image(0, read=False, write=True)
         self.run(rc, prog, size)
@@ -70,7 +87,7 @@ class SSDOPass(AOPass):
 class SSDO(Technique):
     id = "SSDO"
     label = "SSDO"
-    description = "Screen-space directional occlusion of the world light plus one bounce from on-screen pixels"
+    description = "Screen-space directional occlusion: one diffuse bounce from on-screen pixels, added to DIRECT"
     family = "screen_space"
     reference = "one_bounce"
     cost_rank = 15

@@ -4,9 +4,10 @@ Stachowiak 2015).
 Passes: DIRECT's three → ``ss_hiz`` (min device-depth pyramid) → ``ssr_trace`` (one GGX
 visible-normal sampled ray per pixel at ``scale``, Hi-Z traversal, ``thickness``, edge
 fade, rays leaving the screen miss) → ``ssr_resolve`` (ratio estimator over
-``resolve_samples`` neighbouring rays, radius growing with roughness; misses and surfaces
-rougher than ``max_roughness`` fall back to the world colour) → ``ssr_temporal`` →
-``ssr_composite`` (``color += spec_albedo * resolved radiance``). Radiance at a hit is the
+``resolve_samples`` neighbouring rays, radius growing with roughness; misses fall back to
+the world colour) → ``ssr_temporal`` → ``ssr_composite`` (``color += spec_albedo *
+resolved radiance - aov.world_spec``: the resolved radiance replaces DIRECT's world glossy
+term; surfaces rougher than ``max_roughness`` keep DIRECT's shadowed one). Radiance at a hit is the
 direct-lit colour without emission (one bounce; emitters' glossy reflection is DIRECT's).
 All SSR passes provide INDIRECT_SPECULAR: the planner skips them, saying "no glossy
 surface in view", on a scene without one. Compared with Cycles "one_bounce".
@@ -17,8 +18,9 @@ See docs/techniques/SSR.md.
 | steps | 8–1024 | Hi-Z traversal iterations per ray |
 | thickness | 0.001–10 | assumed thickness of the depth buffer (scene units) |
 | max_distance | 0.1–1000 | ray length (scene units) |
-| max_roughness | 0–1 | rougher surfaces use the fallback only |
+| max_roughness | 0–1 | rougher surfaces keep DIRECT's world reflection |
 | edge_fade | 0–0.5 | screen fraction over which hits fade at the border |
+| bias | 0–1 | ray origin offset along the geometric normal (scene units) |
 | resolve_samples | 1–16 | neighbour rays reused per pixel |
 | scale | 0.25–1 | resolution scale of the trace |
 
