@@ -158,8 +158,8 @@ def test_direct_matches_cycles(light_kind):
         err = metrics.relmse(ours[..., :3], ref[..., :3], mask=keep)
         err_all = metrics.relmse(ours[..., :3], ref[..., :3])
         lit = ref[..., :3].mean() > 1e-3
-        print(f"{light_kind}: relMSE {err:.4f} over {keep.mean() * 100:.1f}% of pixels (non-penumbra), "
-              f"{err_all:.4f} over all; mean ours {ours[..., :3].mean():.4f} cycles {ref[..., :3].mean():.4f}")
+        print(f"{light_kind}: relMSE {err:.2e} over {keep.mean() * 100:.1f}% of pixels (non-penumbra), "
+              f"{err_all:.2e} over all; mean ours {ours[..., :3].mean():.4f} cycles {ref[..., :3].mean():.4f}")
         if err > THRESHOLD or not lit:
             from gi_preview.compare import imageio
 

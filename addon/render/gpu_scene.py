@@ -115,7 +115,7 @@ def pack_lights(scene: SceneData, emitters: "EmitterSet") -> np.ndarray:
             r[16:19] = v
             r[19] = L.area()
         r[23] = 1.0 if L.cast_shadow else 0.0
-        r[26] = idx
+        r[26] = 1.0  # views per shadow origin (set by the shadow pass)
         recs.append(r)
     for g in emitters.groups:
         r = np.zeros(LIGHT_FLOATS, np.float32)
@@ -126,7 +126,7 @@ def pack_lights(scene: SceneData, emitters: "EmitterSet") -> np.ndarray:
         r[20] = g["first"]
         r[21] = g["count"]
         r[23] = 1.0
-        r[26] = len(recs)
+        r[26] = 6.0
         r[27] = float(np.sum(g["areas"]))
         recs.append(r)
     if not recs:

@@ -55,11 +55,8 @@ vec3 diffuse_brdf(Surface s, vec3 N, vec3 V) {
     return (1.0 - s.metallic) * s.base_color * INV_PI * layer;
 }
 
-// F_out: for area and mesh lights, the unshadowed geometric integral F = E / L (see
-// shadow_ratio_weight); 0 for the others.
-vec3 shade_light(int li, Surface s, vec3 P, vec3 N, vec3 Ng, vec3 V, inout Rng rng, out float F_out) {
+vec3 shade_light(int li, Surface s, vec3 P, vec3 N, vec3 Ng, vec3 V, inout Rng rng) {
     Light L = lights[li];
-    F_out = 0.0;
     int type = int(L.pos_type.w + 0.5);
     vec3 result = vec3(0.0);
     bool has_glossy = (s.metallic > 0.0 || s.f0 > 0.0);
@@ -130,8 +127,7 @@ vec3 shade_light(int li, Surface s, vec3 P, vec3 N, vec3 Ng, vec3 V, inout Rng r
     if (type == LIGHT_AREA) {
         vec3 Le = L.color.rgb;
         float area = max(L.axis_v.w, 1e-12);
-        F_out = area_light_irradiance_factor(L, P, N);
-        result += Le * diffuse_brdf(s, N, V) * F_out;
+        result += Le * diffuse_brdf(s, N, V) * area_light_irradiance_factor(L, P, N);
         if (has_glossy) {
             for (int k = 0; k < u_glossy_samples; ++k) {
                 vec4 u = rng_next4(rng);
@@ -163,9 +159,7 @@ vec3 shade_light(int li, Surface s, vec3 P, vec3 N, vec3 Ng, vec3 V, inout Rng r
         if (count <= u_mesh_exact_max) {
             for (int i = first; i < first + count; ++i) {
                 Emitter e = emitters[i];
-                float f = triangle_irradiance_factor(e.p0.xyz, e.p1.xyz, e.p2.xyz, P, N);
-                F_out += f;
-                result += e.radiance.rgb * fd * f;
+                result += e.radiance.rgb * fd * triangle_irradiance_factor(e.p0.xyz, e.p1.xyz, e.p2.xyz, P, N);
             }
         } else {
             const int K = 8;
@@ -174,7 +168,6 @@ vec3 shade_light(int li, Surface s, vec3 P, vec3 N, vec3 Ng, vec3 V, inout Rng r
                 int i = pick_emitter(L, rng_next(rng), prob);
                 Emitter e = emitters[i];
                 float f = triangle_irradiance_factor(e.p0.xyz, e.p1.xyz, e.p2.xyz, P, N);
-                F_out += f * (e.p0.w / max(L.shadow.w, 1e-12)) / (prob * float(K));
                 result += e.radiance.rgb * fd * f / (prob * float(K));
             }
         }
@@ -219,17 +212,9 @@ void main() {
     Rng rng = rng_init(uvec2(px), u_sample, 1u);
     vec3 direct = vec3(0.0);
     for (int i = 0; i < u_light_count; ++i) {
-        float F;
-        vec3 c = shade_light(i, s, P, N, Ng, V, rng, F);
+        vec3 c = shade_light(i, s, P, N, Ng, V, rng);
         if (max3(c) <= 0.0) continue;
-        int view;
-        float vis = shadow_visibility(lights[i], P, Ng, view);
-        int type = int(lights[i].pos_type.w + 0.5);
-        if (vis > 0.0 && (type == LIGHT_AREA || type == LIGHT_MESH)) {
-            float area = type == LIGHT_AREA ? lights[i].axis_v.w : lights[i].shadow.w;
-            vis *= shadow_ratio_weight(view, P, N, area, F, type == LIGHT_MESH);
-        }
-        direct += c * vis;
+        direct += c * light_visibility(lights[i], P, N, Ng);
     }
     vec3 world_spec = vec3(0.0);
     if (u_world_count > 0) {

@@ -50,7 +50,7 @@ struct Light {
     vec4 axis_u;       // area: half-extent vector u, w = shape | spot: row 0 of world->light 3x3, w = cos(half cone)
     vec4 axis_v;       // area: half-extent vector v, w = area (m^2) | spot: row 1, w = spot smoothness 1/((1-cos)*blend)
     vec4 axis_w;       // spot: row 2 of world->light 3x3 | mesh: x = first emitter, y = count; w = casts shadow
-    vec4 shadow;       // x = first shadow view, y = view count, z = light index, w = mesh light total area
+    vec4 shadow;       // x = first shadow view, y = view count, z = views per shadow origin, w = mesh light area
 };
 
 struct Emitter {       // one emissive triangle in world space

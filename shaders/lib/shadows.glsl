@@ -2,10 +2,6 @@
 // (addon/render/passes/shadows.py). Each light owns a run of views (6 cube faces, or sun
 // cascades); the first view whose frustum holds the point answers, with a 3x3 PCF and
 // normal-offset + slope bias. Points outside every view are lit.
-// For lights with area, a view is rendered from one point y_k sampled on the light per
-// frame; shadow_ratio_weight() turns its visibility into an unbiased estimate of the
-// shadowed/unshadowed ratio (weighting by the point-to-point geometry term), so light
-// behind a receiver's horizon is not counted as shadow twice.
 #ifndef GI_SHADOWS_GLSL
 #define GI_SHADOWS_GLSL
 
@@ -31,7 +27,7 @@ float shadow_view_visibility(int i, vec3 p, vec3 ng, out bool inside) {
     if (ortho && ndc.z < -1.0) return 1.0;
     float metric = ortho ? dot(po - sv.origin.xyz, sv.dir.xyz) : length(po - sv.origin.xyz);
     float slope = sqrt(1.0 - cosg * cosg) / cosg;
-    float bias = texel * (0.3 + 0.6 * min(slope, 4.0)) + 1e-4 * metric;
+    float bias = texel * (0.3 + 0.25 * min(slope, 4.0)) + 1e-4 * metric;
     vec2 uv = (ndc.xy * 0.5 + 0.5);
     vec2 tile_px = sv.rect.zw * vec2(atlas);
     vec2 base_px = sv.rect.xy * vec2(atlas);
@@ -54,21 +50,42 @@ float shadow_view_visibility(int i, vec3 p, vec3 ng, out bool inside) {
     return lit / wsum;
 }
 
-// view_out: the index of the view that answered (-1 when none did).
-float shadow_visibility(Light L, vec3 p, vec3 ng, out int view_out) {
-    view_out = -1;
+// Visibility of light L from p. The light's views come in groups, one per shadow origin
+// sampled on it this frame (shadow.z views each); each group answers with the view whose
+// frustum holds p. The groups' visibilities are averaged with weights w = the origin's
+// geometry term cos_x cos_y / d^2 for area and mesh lights (1 for the others): a ratio
+// estimator of the shadowed/unshadowed fraction that is exact for unoccluded points and
+// does not count light behind the receiver's horizon as shadow.
+float light_visibility(Light L, vec3 p, vec3 n, vec3 ng) {
     int first = int(L.shadow.x + 0.5);
     int count = int(L.shadow.y + 0.5);
+    int per = max(int(L.shadow.z + 0.5), 1);
     if (count <= 0 || L.axis_w.w < 0.5) return 1.0;
-    for (int i = first; i < first + count; ++i) {
-        bool inside;
-        float v = shadow_view_visibility(i, p, ng, inside);
-        if (inside) {
-            view_out = i;
-            return v;
+    int type = int(L.pos_type.w + 0.5);
+    bool weighted = type == LIGHT_AREA || type == LIGHT_MESH;
+    float num = 0.0, den = 0.0;
+    for (int g = first; g < first + count; g += per) {
+        float w = 1.0;
+        if (weighted) {
+            ShadowView sv = shadow_views[g];
+            vec3 d = sv.origin.xyz - p;
+            float d2 = max(dot(d, d), 1e-12);
+            vec3 wd = d * inversesqrt(d2);
+            float cy = dot(sv.dir.xyz, -wd);
+            cy = type == LIGHT_MESH ? abs(cy) : max(cy, 0.0);
+            w = max(dot(n, wd), 0.0) * cy / d2;
+            if (w <= 0.0) continue;
         }
+        float v = 1.0;
+        for (int i = g; i < g + per; ++i) {
+            bool inside;
+            float vi = shadow_view_visibility(i, p, ng, inside);
+            if (inside) { v = vi; break; }
+        }
+        num += w * v;
+        den += w;
     }
-    return 1.0;
+    return den > 0.0 ? num / den : 1.0;
 }
 
 // World light: views [first, first+count) are orthographic maps along directions sampled
@@ -87,20 +104,6 @@ float world_visibility(int first, int count, vec3 p, vec3 n, vec3 ng) {
         den += c;
     }
     return den > 0.0 ? num / den : 1.0;
-}
-
-// w(y_k) * A / F, with w the geometry term cos_x cos_y / d^2 of the sample point y_k
-// (view origin, light normal in view.dir), A the light's area and F the unshadowed
-// integral of w over the light (E / L). Expected value over y_k: 1 when unoccluded.
-float shadow_ratio_weight(int view, vec3 p, vec3 n, float area, float F, bool two_sided) {
-    if (view < 0 || F <= 1e-8) return 1.0;
-    ShadowView sv = shadow_views[view];
-    vec3 d = sv.origin.xyz - p;
-    float d2 = max(dot(d, d), 1e-12);
-    vec3 wd = d * inversesqrt(d2);
-    float cy = dot(sv.dir.xyz, -wd);
-    cy = two_sided ? abs(cy) : max(cy, 0.0);
-    return max(dot(n, wd), 0.0) * cy / d2 * area / F;
 }
 
 #endif

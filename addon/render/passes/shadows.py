@@ -1,12 +1,14 @@
 """Shadow atlas: one R32F atlas holding every shadow view of every light.
 
 Views: one perspective view for a spot light whose cone is at most 120 degrees, six cube
-faces for point, wider spot, area and mesh lights (centred on a point sampled on the light
-each frame when the light has a size, so accumulated frames give physically sized
-penumbrae), and cascades (orthographic, fitted to slices of the camera frustum) for sun
+faces for point, wider spot, area and mesh lights, and cascades (orthographic, fitted to slices of the camera frustum) for sun
 lights, whose direction is sampled inside the sun's disk each frame. The shading side is
 ``shaders/lib/shadows.glsl``; the view record layout is ``ShadowView`` in common.glsl.
-Lights without size are rendered once and reused while the scene is unchanged.
+A light with size gets ``light_samples`` shadow origins per frame (points on the light, or
+directions in the sun's disk; the first frame's first origin is the centre), each with its
+own views; the shading side averages their visibilities weighted by each origin's geometry
+term, so unoccluded points are exact from the first frame and penumbrae converge as frames
+accumulate. Lights without size are rendered once and reused while the scene is unchanged.
 """
 from __future__ import annotations
 
@@ -82,14 +84,15 @@ class ShadowPass(Pass):
     params = (
         Param("shadow_resolution", 512, 64, 4096, "texels per side of one cube face / cascade"),
         Param("cascades", 3, 1, 4, "sun cascades"),
-        Param("normal_offset", 1.5, 0.0, 8.0, "normal offset in texels"),
+        Param("normal_offset", 2.0, 0.0, 8.0, "normal offset in texels"),
         Param("world_directions", 8, 0, 64, "world light: directions (orthographic maps) sampled per frame"),
+        Param("light_samples", 2, 1, 16, "lights with size: points on the light (shadow origins) per frame"),
     )
     quality_ladder = (
-        {"shadow_resolution": 256, "cascades": 2, "world_directions": 4},
-        {"shadow_resolution": 512, "cascades": 3, "world_directions": 8},
-        {"shadow_resolution": 1024, "cascades": 3, "world_directions": 16},
-        {"shadow_resolution": 2048, "cascades": 4, "world_directions": 24},
+        {"shadow_resolution": 256, "cascades": 2, "world_directions": 4, "light_samples": 1},
+        {"shadow_resolution": 512, "cascades": 3, "world_directions": 8, "light_samples": 2},
+        {"shadow_resolution": 1024, "cascades": 3, "world_directions": 16, "light_samples": 4},
+        {"shadow_resolution": 2048, "cascades": 4, "world_directions": 24, "light_samples": 4},
     )
 
     def __init__(self, quality=None, **props):
@@ -165,33 +168,16 @@ class ShadowPass(Pass):
         for gi, g in enumerate(rc.scene.emitters.groups):
             records.append({"index": len(scene.lights) + gi, "type": LIGHT_MESH, "group": g})
         views = []  # (light index, view_proj, origin, ortho, dir, texel, far)
+        self._per_group = {}  # light index -> views per shadow origin (6 cube faces, 1, cascades)
         cam = scene.camera
+        J = int(self["light_samples"])
         for rec in records:
-            if rec["type"] == int(LightType.SUN):
-                L = rec["light"]
-                d = self._sun_dir(L, frame.index)
-                for (vp, origin, texel, far) in self._cascades(rc, cam, d, center, radius, res):
-                    views.append((rec["index"], vp, origin, 1, d, texel, far))
-                continue
-            origin, normal = self._sample_origin(rec, scene, frame.index, rng)
-            origin = np.asarray(origin, np.float64)
-            far = float(np.linalg.norm(origin - center)) + radius * 1.01 + 1e-3
-            near = max(1e-3, far * 1e-5)
-            L = rec.get("light")
-            if L is not None and L.type == LightType.SPOT and L.spot_size <= math.radians(120.0):
-                # one perspective view around the cone (10% margin for the blend and scale)
-                fov = min(math.radians(150.0), L.spot_size * 1.1 + math.radians(2.0))
-                proj = perspective(fov, near, far)
-                texel = 2 * math.tan(fov / 2) / res
-                vp = proj @ look_at(origin, L.direction.astype(np.float64), (0, 0, 1))
-                views.append((rec["index"], vp, origin, 0, normal, texel, far))
-                continue
-            fov = math.radians(92.0)
-            proj = perspective(fov, near, far)
-            texel = 2 * math.tan(fov / 2) / res
-            for fwd, up in CUBE_DIRS:
-                vp = proj @ look_at(origin, fwd, up)
-                views.append((rec["index"], vp, origin, 0, normal, texel, far))
+            n_origins = J if self._has_size(rec) else 1
+            for j in range(n_origins):
+                k = frame.index * n_origins + j  # k = 0: the light's centre / the sun's axis
+                n_views = self._views_for(rec, k, scene, rng, rc, cam, center, radius, res, views)
+                self._per_group[rec["index"]] = n_views
+
         # world light: orthographic maps along directions stratified on the sphere, rotated
         # every frame (frame 0 included: a fixed, well-spread set)
         K = int(self["world_directions"]) if float(np.max(scene.world.color)) > 0 else 0
@@ -208,6 +194,43 @@ class ShadowPass(Pass):
                 vp = ortho(radius * 1.02, 0.0, 4.0 * radius) @ look_at(eye, d, (0, 0, 1))
                 views.append(("world", vp, eye, 1, d, 2.0 * radius * 1.02 / res, 4.0 * radius))
         return views
+
+    @staticmethod
+    def _has_size(rec) -> bool:
+        if rec["type"] == LIGHT_MESH:
+            return True
+        L = rec["light"]
+        return (L.type == LightType.AREA or (L.type in (LightType.POINT, LightType.SPOT) and L.radius > 0)
+                or (L.type == LightType.SUN and L.angle > 1e-5))
+
+    def _views_for(self, rec, k, scene, rng, rc, cam, center, radius, res, views) -> int:
+        """Append the views of one shadow origin (sample k of the light); returns how many."""
+        if rec["type"] == int(LightType.SUN):
+            d = self._sun_dir(rec["light"], k)
+            cascades = self._cascades(rc, cam, d, center, radius, res)
+            for (vp, origin, texel, far) in cascades:
+                views.append((rec["index"], vp, origin, 1, d, texel, far))
+            return len(cascades)
+        origin, normal = self._sample_origin(rec, scene, k, rng)
+        origin = np.asarray(origin, np.float64)
+        far = float(np.linalg.norm(origin - center)) + radius * 1.01 + 1e-3
+        near = max(1e-3, far * 1e-5)
+        L = rec.get("light")
+        if L is not None and L.type == LightType.SPOT and L.spot_size <= math.radians(120.0):
+            # one perspective view around the cone (10% margin for the blend and scale)
+            fov = min(math.radians(150.0), L.spot_size * 1.1 + math.radians(2.0))
+            proj = perspective(fov, near, far)
+            texel = 2 * math.tan(fov / 2) / res
+            vp = proj @ look_at(origin, L.direction.astype(np.float64), (0, 0, 1))
+            views.append((rec["index"], vp, origin, 0, normal, texel, far))
+            return 1
+        fov = math.radians(92.0)
+        proj = perspective(fov, near, far)
+        texel = 2 * math.tan(fov / 2) / res
+        for fwd, up in CUBE_DIRS:
+            vp = proj @ look_at(origin, fwd, up)
+            views.append((rec["index"], vp, origin, 0, normal, texel, far))
+        return len(CUBE_DIRS)
 
     def _cascades(self, rc, cam, d, center, radius, res):
         """Orthographic views along d, fitted to slices of the camera frustum (log splits)."""
@@ -335,6 +358,7 @@ class ShadowPass(Pass):
                 continue
             lights[li, 24] = first
             lights[li, 25] = count
+            lights[li, 26] = self._per_group.get(li, count)
         rc.scene.light_buf.write(lights.tobytes())
         first, count = light_views.pop("world", (0, 0))
         rc.resources[WORLD_RANGE] = WorldRange(first, count)
