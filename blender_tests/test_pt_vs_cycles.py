@@ -276,6 +276,7 @@ def run_scene(ctx, name: str, res: int, batches: int, spp: int, ref_spp: int, ou
     res_ = compare(r["frames"], ref.image[..., :3].astype(np.float64), spp, ref_spp)
     res_["pt_ms"] = r["time_ms"]
     res_["ref_ms"] = ref.time_ms
+    res_["ref"] = ref.image[..., :3]
     if out_dir is not None:
         save_png(out_dir / f"{name}_pt.png", res_["mean_pt"])
         save_png(out_dir / f"{name}_cycles.png", ref.image[..., :3])

@@ -58,16 +58,10 @@ def main():
     for name in a.scenes.split(","):
         t0 = time.perf_counter()
         r = T.run_scene(ctx, name, a.res, a.batches, a.spp, a.ref_spp, None)
-        scene = None
         ok = r["fail_fraction"] <= T.MAX_FAIL_FRACTION and r["relmse"] <= T.NOISE_FLOOR_FACTOR * r["noise_floor"]
         rows.append((name, r, ok))
-        # images: rebuild the reference from the cache (run_scene returned only PT's mean)
-        scene = T.build(name, a.res)
-        dg = T.evaluated_depsgraph(scene)
-        ref = T.get_reference(scene, "full", a.ref_spp, depsgraph=dg, cache_dir=str(T.ART / "ref_cache"))
-        bpy.data.scenes.remove(scene)
         T.save_png(img_dir / f"{name}_pt.png", r["mean_pt"])
-        T.save_png(img_dir / f"{name}_cycles.png", ref.image[..., :3])
+        T.save_png(img_dir / f"{name}_cycles.png", r["ref"])
         err = np.repeat(np.clip(np.abs(r["z"]) / r["tcrit"], 0, 1)[..., None], 3, axis=2)
         T.save_png(img_dir / f"{name}_err.png", err)
         print(f"{name:<15} {'PASS' if ok else 'FAIL'} fail {100 * r['fail_fraction']:.2f}% relMSE {r['relmse']:.3g} "
