@@ -126,7 +126,9 @@ class Session:
             if not keep_history:
                 graph.reset_history()
         self.acc_key = acc_key
-        outputs = {"Combined": "color", **tech.outputs}
+        # only what a pass that runs this frame writes (a skipped pass's old image is stale)
+        written = {w for p in plan.active for w in p.writes}
+        outputs = {aov: r for aov, r in {"Combined": "color", **tech.outputs}.items() if r in written}
         frame_times, pass_ms = [], {}
         samples = max(1, int(samples))
         for i in range(samples):

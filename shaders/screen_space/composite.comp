@@ -10,7 +10,9 @@
 //   on-screen radiance; misses: the world) replaces DIRECT's world reflection where SSR
 //   traced (signal a = 1, filtered: a blends): glossy = specular albedo * resolved -
 //   a * DIRECT's world glossy term; elsewhere (a = 0: too rough) DIRECT's term stays.
-// Reads and writes "color" in place; writes the AO effect image (MODE_AO / MODE_SSDO).
+// Reads and writes "color" in place; writes the AO effect image (MODE_AO / MODE_SSDO) and
+// the effect image: what this pass added (SSR: negative where on-screen geometry replaces
+// DIRECT's world reflection by something darker).
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/rng.glsl"
@@ -22,6 +24,7 @@
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, rgba32f) uniform image2D io_color;
 layout(binding = 1, rgba32f) uniform writeonly image2D o_ao;
+layout(binding = 2, rgba32f) uniform writeonly image2D o_effect;  // what this pass adds (effect AOV)
 
 uniform sampler2D u_signal;
 #ifdef MODE_SSR
@@ -42,6 +45,7 @@ void main() {
 #if defined(MODE_AO) || defined(MODE_SSDO)
         imageStore(o_ao, px, vec4(1.0));
 #endif
+        imageStore(o_effect, px, vec4(0.0, 0.0, 0.0, 1.0));
         return;
     }
     Surface s = fetch_surface(px, g.mid);
@@ -75,5 +79,7 @@ void main() {
     add = ks * max(sig.rgb, vec3(0.0)) - clamp(sig.a, 0.0, 1.0) * texelFetch(u_world_spec, px, 0).rgb;
 #endif
     vec4 c = imageLoad(io_color, px);
-    imageStore(io_color, px, vec4(sanitize(c.rgb + add), c.a));
+    vec3 total = sanitize(c.rgb + add);
+    imageStore(io_color, px, vec4(total, c.a));
+    imageStore(o_effect, px, vec4(total - c.rgb, 1.0));
 }

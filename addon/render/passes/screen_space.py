@@ -325,11 +325,13 @@ class CompositePass(ScreenPass):
         if mode == "SSR":
             reads += [WORLD_SPEC]
         self.reads = tuple(reads)
-        self.writes = (COLOR,) + ((ao_output,) if ao_output else ())
+        self.effect_output = f"{self.name}.effect"  # what this pass adds: the effect's render pass
+        self.writes = (COLOR, self.effect_output) + ((ao_output,) if ao_output else ())
 
     def compile(self, rc):
         if self.ao_output:
             rc.texture(self.ao_output, 4, "f4")
+        rc.texture(self.effect_output, 4, "f4")
 
     def execute(self, rc, frame):
         prog = self.program(rc, "screen_space/composite.comp", {f"MODE_{self.mode}": 1})
@@ -348,6 +350,7 @@ class CompositePass(ScreenPass):
         res[COLOR].bind_to_image(0, read=True, write=True)
         if self.ao_output:
             rc.texture(self.ao_output, 4, "f4").bind_to_image(1, read=False, write=True)
+        rc.texture(self.effect_output, 4, "f4").bind_to_image(2, read=False, write=True)
         self.run(rc, prog)
 
 

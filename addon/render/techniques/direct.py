@@ -33,6 +33,8 @@ from ..passes.shadows import ATLAS, VIEWS, WORLD_RANGE, ShadowPass
 from . import Technique, register
 
 COLOR, AOV_DIRECT, AOV_EMIT, WORLD_SPEC = "color", "aov.direct", "aov.emit", "aov.world_spec"
+# DIRECT's render passes; every technique built on DIRECT's passes returns them too
+DIRECT_OUTPUTS = {"GI_Direct": AOV_DIRECT, "Emit": AOV_EMIT}
 
 
 class DirectLightPass(Pass):
@@ -93,7 +95,7 @@ class Direct(Technique):
     family = "core"
     reference = "direct"
     cost_rank = 0
-    outputs = {"GI_Direct": AOV_DIRECT, "Emit": AOV_EMIT}
+    outputs = DIRECT_OUTPUTS
 
     def passes(self, quality):
         return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality)]

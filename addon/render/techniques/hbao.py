@@ -30,7 +30,7 @@ from ..passes.gbuffer import GBufferPass
 from ..passes.screen_space import ao_chain
 from ..passes.shadows import ShadowPass
 from . import Technique, register
-from .direct import DirectLightPass
+from .direct import DIRECT_OUTPUTS, DirectLightPass
 from .ssao import AO_PROVIDES, BLUR, AOPass, _q
 
 
@@ -65,7 +65,7 @@ class HBAO(Technique):
     family = "screen_space"
     reference = "one_bounce"
     cost_rank = 12
-    outputs = {"GI_AO": "hbao.aov", "GI_Direct": "aov.direct"}
+    outputs = {**DIRECT_OUTPUTS, "GI_AO": "hbao.aov", "GI_IndirectDiffuse": "hbao_composite.effect"}
 
     def passes(self, quality):
         return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality),

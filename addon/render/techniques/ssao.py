@@ -35,7 +35,7 @@ from ..passes.gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION, GBufferPass
 from ..passes.screen_space import ScreenPass, Units, ao_chain, bind_frame, bind_gbuffer, scaled
 from ..passes.shadows import ShadowPass
 from . import Technique, register
-from .direct import DirectLightPass
+from .direct import DIRECT_OUTPUTS, DirectLightPass
 
 AO_PROVIDES = frozenset({Effect.AO, Effect.INDIRECT_DIFFUSE})
 BLUR = ({"blur_radius": 3}, {"blur_radius": 2}, {"blur_radius": 2}, {"blur_radius": 1})
@@ -104,7 +104,7 @@ class SSAO(Technique):
     family = "screen_space"
     reference = "one_bounce"
     cost_rank = 10
-    outputs = {"GI_AO": "ssao.aov", "GI_Direct": "aov.direct"}
+    outputs = {**DIRECT_OUTPUTS, "GI_AO": "ssao.aov", "GI_IndirectDiffuse": "ssao_composite.effect"}
 
     def passes(self, quality):
         return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality),

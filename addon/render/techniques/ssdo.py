@@ -32,7 +32,7 @@ from ..passes.gbuffer import GBufferPass
 from ..passes.screen_space import DIRECT_RADIANCE, Units, ao_chain, bind_frame, bind_gbuffer
 from ..passes.shadows import ShadowPass
 from . import Technique, register
-from .direct import DirectLightPass
+from .direct import DIRECT_OUTPUTS, DirectLightPass
 from .ssao import BLUR, AOPass, _q
 
 SSDO_PROVIDES = frozenset({Effect.AO, Effect.INDIRECT_DIFFUSE})
@@ -91,7 +91,7 @@ class SSDO(Technique):
     family = "screen_space"
     reference = "one_bounce"
     cost_rank = 15
-    outputs = {"GI_AO": "ssdo.aov", "GI_Direct": "aov.direct"}
+    outputs = {**DIRECT_OUTPUTS, "GI_AO": "ssdo.aov", "GI_IndirectDiffuse": "ssdo_composite.effect"}
 
     def passes(self, quality):
         return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality),

@@ -35,7 +35,7 @@ from ..passes.screen_space import (DIRECT_RADIANCE, HIZ, CompositePass, HiZPass,
                                    Units, bind_frame, bind_gbuffer, scaled)
 from ..passes.shadows import ShadowPass
 from . import Technique, register
-from .direct import DirectLightPass
+from .direct import DIRECT_OUTPUTS, DirectLightPass
 
 SSR_PROVIDES = frozenset({Effect.INDIRECT_SPECULAR})
 RAY0, RAY1, RESOLVED = "ssr.ray0", "ssr.ray1", "ssr.raw"
@@ -126,7 +126,7 @@ class SSR(Technique):
     family = "screen_space"
     reference = "one_bounce"
     cost_rank = 20
-    outputs = {"GI_Direct": "aov.direct"}
+    outputs = {**DIRECT_OUTPUTS, "GI_IndirectGlossy": "ssr_composite.effect"}
 
     def passes(self, quality):
         p = SSR_PROVIDES
