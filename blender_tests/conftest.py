@@ -83,7 +83,11 @@ def clean_blend_data():
         yield
         return
     before = set(_all_ids(bpy))
+    window = bpy.context.window
+    scene = window.scene if window is not None else None
     yield
+    if window is not None and scene is not None and window.scene != scene:
+        window.scene = scene  # never leave the window on a scene about to be removed
     new = [idb for key, idb in _all_ids(bpy).items() if key not in before]
     if new:
         bpy.data.batch_remove(new)

@@ -89,21 +89,28 @@ float light_visibility(Light L, vec3 p, vec3 n, vec3 ng) {
 }
 
 // World light: views [first, first+count) are orthographic maps along directions sampled
-// on the sphere this frame (view.dir = the direction light travels, -omega). Returns the
-// cosine-weighted visible fraction of the sampled directions above n (a ratio estimator:
-// exact for unoccluded points at any sample count); 1 when no sample is above n.
-float world_visibility(int first, int count, vec3 p, vec3 n, vec3 ng) {
-    float num = 0.0, den = 0.0;
+// on the sphere this frame (view.dir = the direction light travels, -omega). Ratio
+// estimators (exact for unoccluded points at any sample count) of the visible fraction:
+// vis_diffuse weights the sampled directions above the surface by cos to n, vis_glossy by
+// cos to the glossy lobe's dominant direction d (the lobe widened to what the sample count
+// can resolve). 1 when no sampled direction carries weight.
+void world_visibility(int first, int count, vec3 p, vec3 n, vec3 ng, vec3 d,
+                      out float vis_diffuse, out float vis_glossy) {
+    float num_d = 0.0, den_d = 0.0, num_g = 0.0, den_g = 0.0;
     for (int i = first; i < first + count; ++i) {
         vec3 omega = -shadow_views[i].dir.xyz;
         float c = dot(n, omega);
         if (c <= 0.0 || dot(ng, omega) <= 0.0) continue;
+        float cg = max(dot(d, omega), 0.0);
         bool inside;
         float v = shadow_view_visibility(i, p, ng, inside);
-        num += c * v;
-        den += c;
+        num_d += c * v;
+        den_d += c;
+        num_g += cg * v;
+        den_g += cg;
     }
-    return den > 0.0 ? num / den : 1.0;
+    vis_diffuse = den_d > 0.0 ? num_d / den_d : 1.0;
+    vis_glossy = den_g > 0.0 ? num_g / den_g : vis_diffuse;
 }
 
 #endif

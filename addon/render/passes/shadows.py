@@ -154,12 +154,13 @@ class ShadowPass(Pass):
         out = c * d + s * (math.cos(phi) * t + math.sin(phi) * b)
         return out / np.linalg.norm(out)
 
-    def _build_views(self, rc, frame):
+    def _build_views(self, rc, frame, res: int):
+        """Every view of this frame; ``res`` is the tile size the atlas will really use
+        (texel sizes, hence biases, depend on it)."""
         scene = rc.scene.scene
         lo, hi = scene.world_bounds()
         center = 0.5 * (lo + hi)
         radius = max(float(np.linalg.norm(hi - lo)) * 0.5, 1e-3)
-        res = int(self["shadow_resolution"])
         rng = np.random.default_rng(frame.index * 7919 + 13)
         records = []
         for li, L in enumerate(scene.lights):
@@ -310,9 +311,11 @@ class ShadowPass(Pass):
                frame.index if self._dynamic(scene) else 0)
         if self._static_key == key and not self._dynamic(scene):
             return
-        views = self._build_views(rc, frame)
-        self._last_views = views  # for inspection (tests, debug views)
+        views = self._build_views(rc, frame, int(self["shadow_resolution"]))
         cols, res = self._ensure_atlas(rc, len(views))
+        if res != int(self["shadow_resolution"]):  # the atlas had to shrink the tiles
+            views = self._build_views(rc, frame, res)
+        self._last_views = views  # for inspection (tests, debug views)
         atlas_w, atlas_h = self.atlas.size
         table = np.zeros((max(1, len(views)), VIEW_FLOATS), np.float32)
         light_views = {}
