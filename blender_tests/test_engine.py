@@ -438,3 +438,24 @@ def test_auto_runs_only_the_passes_the_scene_needs(demo, ssr_runs):
         assert "ssdo" in res.pass_ms and "indirect_diffuse" in res.effects
     finally:
         bpy.data.scenes.remove(sc)
+
+
+def test_switching_techniques_and_sizes_in_one_session():
+    """Graphs share a session's resources: rendering A at one size, B at another, then A
+    again at the second size must give images of the right size (a stale-size regression)."""
+    sc = build_demo("cornell", resolution=32)
+    try:
+        from gi_preview.blender.export import export_scene
+
+        with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
+            dg = bpy.context.evaluated_depsgraph_get()
+        small = export_scene(dg)
+        large = export_scene(dg, width=48, height=40)
+        for data, tech in ((small, "AUTO"), (large, "DIRECT"), (small, "AUTO"), (large, "SSAO"), (small, "DIRECT")):
+            res = session.render(data, tech, 0, 2, session="switching")
+            assert res.image.shape == (data.height, data.width, 4), (tech, data.width)
+            for name, aov in res.aovs.items():
+                assert aov.shape[:2] == (data.height, data.width), (tech, name)
+            assert np.isfinite(res.image).all() and res.image[..., :3].mean() > 1e-3
+    finally:
+        bpy.data.scenes.remove(sc)

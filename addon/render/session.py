@@ -67,6 +67,7 @@ class Session:
         self.acc_key = None
         self.prev_view_proj = None
         self.sample_counter = 0
+        self._last_graph = None
 
     # -------------------------------------------------------------- helpers
     def _graph(self, technique_id: str, quality: int):
@@ -112,7 +113,10 @@ class Session:
             self.rc = RenderContext(self.ctx, self.programs, self.gpu_scene, size)
         if self.rc.size != size:
             self.rc.size = size
-        graph.compile(self.rc)
+        # the session's resources are shared by its graphs: a graph compiled earlier may find
+        # them reallocated (another size) by another graph since, so switching graphs recompiles
+        graph.compile(self.rc, force=graph is not self._last_graph)
+        self._last_graph = graph
         plan = graph.plan(analysis.needed, analysis.reasons)
         cam = scene.camera
         view = cam.view.astype(np.float64)
