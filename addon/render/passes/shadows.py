@@ -193,7 +193,9 @@ class ShadowPass(Pass):
                 d = -omega  # the direction light travels
                 eye = center - d * (2.0 * radius)
                 vp = ortho(radius * 1.02, 0.0, 4.0 * radius) @ look_at(eye, d, (0, 0, 1))
-                views.append(("world", vp, eye, 1, d, 2.0 * radius * 1.02 / res, 4.0 * radius))
+                # world views use a quarter tile (half the resolution): sky visibility is
+                # smooth, and this keeps many directions within the atlas
+                views.append(("world", vp, eye, 1, d, 2.0 * radius * 1.02 / max(32, res // 2), 4.0 * radius))
         return views
 
     @staticmethod
@@ -312,7 +314,9 @@ class ShadowPass(Pass):
         if self._static_key == key and not self._dynamic(scene):
             return
         views = self._build_views(rc, frame, int(self["shadow_resolution"]))
-        cols, res = self._ensure_atlas(rc, len(views))
+        n_world = sum(1 for v in views if v[0] == "world")
+        n_tiles = len(views) - n_world + (n_world + 3) // 4
+        cols, res = self._ensure_atlas(rc, n_tiles)
         if res != int(self["shadow_resolution"]):  # the atlas had to shrink the tiles
             views = self._build_views(rc, frame, res)
         self._last_views = views  # for inspection (tests, debug views)
@@ -326,16 +330,25 @@ class ShadowPass(Pass):
         self.fbo.clear(0.0, 0, 0, 0, depth=1.0)
         rc.ctx.enable(moderngl.DEPTH_TEST)
         rc.ctx.disable(moderngl.CULL_FACE)
+        n_full = len(views) - n_world
         for vi, (li, vp, origin, is_ortho, d, texel, far) in enumerate(views):
-            cx, cy = vi % cols, vi // cols
-            rc.ctx.viewport = (cx * res, cy * res, res, res)
+            if li == "world":  # four per tile, after the full-size views
+                k = vi - n_full
+                tile, quad = n_full + k // 4, k % 4
+                size = max(32, res // 2)
+                x0 = (tile % cols) * res + (quad % 2) * size
+                y0 = (tile // cols) * res + (quad // 2) * size
+            else:
+                size = res
+                x0, y0 = (vi % cols) * res, (vi // cols) * res
+            rc.ctx.viewport = (x0, y0, size, size)
             set_uniform(prog, "u_view_proj", vp.astype(np.float32))
             set_uniform(prog, "u_origin", tuple(float(x) for x in origin))
             set_uniform(prog, "u_dir", tuple(float(x) for x in d) if is_ortho else (0.0, 0.0, 0.0))
             set_uniform(prog, "u_ortho", int(is_ortho))
             rc.scene.draw(prog)
             table[vi, 0:16] = vp.T.astype(np.float32).ravel()  # column-major mat4
-            table[vi, 16:20] = (cx * res / atlas_w, cy * res / atlas_h, res / atlas_w, res / atlas_h)
+            table[vi, 16:20] = (x0 / atlas_w, y0 / atlas_h, size / atlas_w, size / atlas_h)
             table[vi, 20:23] = origin
             table[vi, 23] = is_ortho
             table[vi, 24:27] = d
