@@ -99,9 +99,11 @@ def build_html(*, title: str, results: dict, images: dict | None = None, chart_s
     p.append("<h2>Metrics</h2>")
     p.append('<p class="meta">relMSE = mean (a&minus;b)&sup2;/(b&sup2;+0.01) on linear HDR; FLIP = HDR-FLIP mean; '
              'SSIM and PSNR on the sRGB "Standard" view. Lower is better except SSIM and PSNR. '
-             'Speed-up = Cycles time to reach the same relMSE / technique time (same machine, same run).</p>')
+             'ms/frame: median time of one frame; ms (image): the accumulated image (frames &times; ms/frame), the time '
+             'the chart and the speed-up use. Speed-up = Cycles time to reach the same relMSE / technique time (same '
+             'machine, same run).</p>')
     p.append('<table><tr><th class="l">technique</th><th>quality</th><th class="l">reference</th>'
-             '<th>ms/frame</th><th>relMSE</th><th>FLIP</th><th>SSIM</th><th>PSNR (dB)</th>'
+             '<th>ms/frame</th><th>frames</th><th>ms (image)</th><th>relMSE</th><th>FLIP</th><th>SSIM</th><th>PSNR (dB)</th>'
              '<th>non-finite px</th><th>equal-error speed-up</th></tr>')
     for e in entries:
         s = e.get("speedup") or {}
@@ -110,7 +112,8 @@ def build_html(*, title: str, results: dict, images: dict | None = None, chart_s
         nf = e.get("nonfinite_pixels", 0)
         nf_s = f'<span class="warn">{nf}</span>' if nf else "0"
         p.append(f'<tr><td class="l">{html.escape(str(e.get("technique")))}</td><td>{_num(e.get("quality"), "{}")}</td>'
-                 f'<td class="l">{html.escape(str(e.get("reference")))}</td><td>{_num(e.get("time_ms"), "{:.2f}")}</td>'
+                 f'<td class="l">{html.escape(str(e.get("reference")))}</td><td>{_num(e.get("frame_ms"), "{:.2f}")}</td>'
+                 f'<td>{_num(e.get("samples"), "{}")}</td><td>{_num(e.get("time_ms"), "{:.1f}")}</td>'
                  f'<td>{_num(e.get("relmse"))}</td><td>{_num(e.get("flip"))}</td><td>{_num(e.get("ssim"), "{:.4f}")}</td>'
                  f'<td>{_num(e.get("psnr"), "{:.2f}")}</td><td>{nf_s}</td><td>{sp}</td></tr>')
     p.append("</table>")
