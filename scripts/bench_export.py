@@ -16,23 +16,16 @@ import os
 import platform
 import statistics
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 
 
-def _import_package():
-    try:
-        import gi_preview  # noqa: F401
-    except ImportError:
-        d = tempfile.mkdtemp(prefix="gi_preview_bench_")
-        os.symlink(REPO / "addon", os.path.join(d, "gi_preview"))
-        sys.path.insert(0, d)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _checkout import import_checkout_package  # noqa: E402
 
-
-_import_package()
+import_checkout_package()
 import bpy  # noqa: E402
 import numpy as np  # noqa: E402
 

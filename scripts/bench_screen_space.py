@@ -36,16 +36,10 @@ REPO = os.path.dirname(HERE)
 
 
 def _import_pkg():
-    import tempfile
+    sys.path.insert(0, HERE)
+    from _checkout import import_checkout_package
 
-    try:
-        import gi_preview  # noqa: F401
-        return
-    except ImportError:
-        pass
-    root = tempfile.mkdtemp(prefix="gi_bench_ss_")
-    os.symlink(os.path.join(REPO, "addon"), os.path.join(root, "gi_preview"))
-    sys.path.insert(0, root)
+    import_checkout_package()
 
 
 def log(msg):

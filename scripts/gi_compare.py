@@ -40,7 +40,6 @@ import math
 import os
 import statistics
 import sys
-import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -107,12 +106,10 @@ def find_addon(use_installed: bool):
     dir) when run from a checkout, else the installed extension (``bl_ext.*.gi_preview``)."""
     checkout = os.path.join(REPO, "addon")
     if not use_installed and os.path.isdir(os.path.join(checkout, "compare")):
-        if "gi_preview" in sys.modules:
-            return sys.modules["gi_preview"]
-        d = tempfile.mkdtemp(prefix="gi_compare_pkg_")
-        os.symlink(checkout, os.path.join(d, "gi_preview"), target_is_directory=True)
-        sys.path.insert(0, d)
-        return importlib.import_module("gi_preview")
+        sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+        from _checkout import import_checkout_package
+
+        return import_checkout_package()
     import bpy
     for name in bpy.context.preferences.addons.keys():
         if name.endswith(".gi_preview") or name == "gi_preview":

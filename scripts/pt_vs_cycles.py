@@ -17,23 +17,16 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 
 
-def _import_package():
-    try:
-        import gi_preview  # noqa: F401
-    except ImportError:
-        d = tempfile.mkdtemp(prefix="gi_preview_ptvc_")
-        os.symlink(REPO / "addon", os.path.join(d, "gi_preview"))
-        sys.path.insert(0, d)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _checkout import import_checkout_package  # noqa: E402
 
-
-_import_package()
+import_checkout_package()
 sys.path.insert(0, str(REPO / "blender_tests"))
 import bpy  # noqa: E402,F401
 import moderngl  # noqa: E402
