@@ -451,7 +451,8 @@ def test_switching_techniques_and_sizes_in_one_session():
             dg = bpy.context.evaluated_depsgraph_get()
         small = export_scene(dg)
         large = export_scene(dg, width=48, height=40)
-        for data, tech in ((small, "AUTO"), (large, "DIRECT"), (small, "AUTO"), (large, "SSAO"), (small, "DIRECT")):
+        for data, tech in ((small, "AUTO"), (large, "DIRECT"), (small, "AUTO"), (large, "SSAO"), (small, "DIRECT"),
+                           (large, "PT"), (small, "PT")):
             res = session.render(data, tech, 0, 2, session="switching")
             assert res.image.shape == (data.height, data.width, 4), (tech, data.width)
             for name, aov in res.aovs.items():

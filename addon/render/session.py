@@ -173,7 +173,8 @@ class Session:
         for aov in outputs:
             if aov != "Combined" and aov in self.acc:
                 aovs[aov] = self._read(self.acc[aov], 3)
-        aovs.update(self._gbuffer_aovs(scene))
+        if "gbuffer.position" in written:  # a graph without a G-buffer (PT) has none this frame
+            aovs.update(self._gbuffer_aovs(scene))
         effects = sorted({e.value for p in plan.active for e in p.provides} & {e.value for e in analysis.needed})
         warnings = list(scene.warnings)
         return RenderResult(
