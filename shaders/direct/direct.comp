@@ -49,6 +49,15 @@ vec3 sample_glossy(Surface s, vec3 N, vec3 V, vec2 u) {
     return to_world(reflect(-to_local(V, N), Hl), N);
 }
 
+// The light-sampling half of the glossy MIS: one sample_light() direction, power heuristic
+// against visible-normal sampling; divided by the number of sample pairs.
+vec3 glossy_light_sample(Light L, Surface s, vec3 P, vec3 N, vec3 V, vec3 u) {
+    LightSample ls = sample_light(L, P, u.xy, u.z);
+    if (ls.pdf <= 0.0) return vec3(0.0);
+    float pb = glossy_pdf(s, N, V, ls.dir);
+    return ls.Li * glossy_fcos(s, N, V, ls.dir) * power_heuristic(ls.pdf, pb) / (ls.pdf * float(u_glossy_samples));
+}
+
 // Diffuse BRDF constant (Lambert under the specular layer), i.e. f_d = this / 1.
 vec3 diffuse_brdf(Surface s, vec3 N, vec3 V) {
     float layer = 1.0 - dielectric_layer_albedo(s, max(dot(N, V), 1e-4));
@@ -78,13 +87,10 @@ vec3 shade_light(int li, Surface s, vec3 P, vec3 N, vec3 Ng, vec3 V, inout Rng r
         result += I * diffuse_brdf(s, N, V) * max(NoL, 0.0) / dist2;
         if (has_glossy) {
             vec3 Ls = I / (PI * r * r);
-            float cos_max = sqrt(max(0.0, 1.0 - r * r / dist2));
-            float pl = cone_pdf(cos_max);
+            float pl = cone_pdf(sqrt(max(0.0, 1.0 - r * r / dist2)));
             for (int k = 0; k < u_glossy_samples; ++k) {
                 vec4 u = rng_next4(rng);
-                vec3 w1 = to_world(sample_cone(u.xy, cos_max), wi);
-                float pb1 = glossy_pdf(s, N, V, w1);
-                result += Ls * glossy_fcos(s, N, V, w1) * power_heuristic(pl, pb1) / (pl * float(u_glossy_samples));
+                result += glossy_light_sample(L, s, P, N, V, u.xyz);
                 vec3 w2 = sample_glossy(s, N, V, u.zw);
                 if (intersect_sphere(L.pos_type.xyz, r, P, w2) > 0.0) {
                     float pb2 = glossy_pdf(s, N, V, w2);
@@ -111,9 +117,7 @@ vec3 shade_light(int li, Surface s, vec3 P, vec3 N, vec3 Ng, vec3 V, inout Rng r
             float pl = cone_pdf(cos_max);
             for (int k = 0; k < u_glossy_samples; ++k) {
                 vec4 u = rng_next4(rng);
-                vec3 w1 = to_world(sample_cone(u.xy, cos_max), wi);
-                float pb1 = glossy_pdf(s, N, V, w1);
-                result += Ls * glossy_fcos(s, N, V, w1) * power_heuristic(pl, pb1) / (pl * float(u_glossy_samples));
+                result += glossy_light_sample(L, s, P, N, V, u.xyz);
                 vec3 w2 = sample_glossy(s, N, V, u.zw);
                 if (dot(w2, wi) >= cos_max) {
                     float pb2 = glossy_pdf(s, N, V, w2);
@@ -131,15 +135,7 @@ vec3 shade_light(int li, Surface s, vec3 P, vec3 N, vec3 Ng, vec3 V, inout Rng r
         if (has_glossy) {
             for (int k = 0; k < u_glossy_samples; ++k) {
                 vec4 u = rng_next4(rng);
-                vec3 q = area_light_point(L, u.xy);
-                vec3 d = q - P;
-                vec3 w1 = normalize(d);
-                if (dot(-w1, L.dir_radius.xyz) > 0.0) {
-                    float pl = area_to_solid_angle_pdf(P, q, L.dir_radius.xyz, area);
-                    float pb1 = glossy_pdf(s, N, V, w1);
-                    if (pl > 0.0)
-                        result += Le * glossy_fcos(s, N, V, w1) * power_heuristic(pl, pb1) / (pl * float(u_glossy_samples));
-                }
+                result += glossy_light_sample(L, s, P, N, V, u.xyz);
                 vec3 w2 = sample_glossy(s, N, V, u.zw);
                 float t = intersect_area_light(L, P, w2);
                 if (t > 0.0) {
@@ -173,17 +169,11 @@ vec3 shade_light(int li, Surface s, vec3 P, vec3 N, vec3 Ng, vec3 V, inout Rng r
         }
         if (has_glossy) {
             for (int k = 0; k < u_glossy_samples; ++k) {
+                // light sampling only (no BSDF branch for meshes): weight 1
                 vec4 u = rng_next4(rng);
-                float prob;
-                int i = pick_emitter(L, u.z, prob);
-                Emitter e = emitters[i];
-                vec2 b = sample_triangle(u.xy);
-                vec3 q = e.p0.xyz * (1.0 - b.x - b.y) + e.p1.xyz * b.x + e.p2.xyz * b.y;
-                vec3 ln = normalize(cross(e.p1.xyz - e.p0.xyz, e.p2.xyz - e.p0.xyz));
-                vec3 w = normalize(q - P);
-                float pl = prob * area_to_solid_angle_pdf(P, q, ln, max(e.p0.w, 1e-12));
-                if (pl > 0.0)
-                    result += e.radiance.rgb * glossy_fcos(s, N, V, w) / (pl * float(u_glossy_samples));
+                LightSample ls = sample_light(L, P, u.xy, u.z);
+                if (ls.pdf > 0.0)
+                    result += ls.Li * glossy_fcos(s, N, V, ls.dir) / (ls.pdf * float(u_glossy_samples));
             }
         }
         return result;

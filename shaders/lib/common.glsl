@@ -9,6 +9,7 @@
 #define INV_PI 0.31830988618379067154
 #define INV_FOUR_PI 0.07957747154594766788
 #define FLT_MAX 3.402823466e+38
+const float T_INF = 1e30;  // "no hit" ray length (e.g. towards the sun)
 
 // Buffer binding points (a shader may override before including this file).
 #ifndef BIND_MATERIALS

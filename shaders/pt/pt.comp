@@ -44,8 +44,6 @@ uniform int u_rr_start;
 uniform ivec2 u_offset;
 uniform int u_lights_visible_camera;  // Blender's default for light objects: 0    // tile origin (dispatches are tiled to stay short)
 
-const float T_INF = 1e30;
-
 Material fetch_material(int id) {
     if (id < 0 || id >= u_material_count) id = u_material_count;  // the default material record
     return materials[id];
@@ -69,15 +67,7 @@ vec3 texture_bilinear(vec2 uv, int layer) {
     return mix(mix(c00, c10, t.x), mix(c01, c11, t.x), t.y);
 }
 
-// ---------------------------------------------------------------- light sampling
-struct LightSample {
-    vec3 dir;      // unit, from the shading point towards the light
-    float dist;    // shadow ray length (T_INF for the sun)
-    vec3 Li;       // radiance (or irradiance for delta lights) arriving along dir
-    float pdf;     // solid-angle pdf of this direction given the light (0 = failed)
-    bool delta;    // point / sun without size: no MIS
-};
-
+// ---------------------------------------------------------------- light selection (sample_light: lib/lights.glsl)
 int select_light(float u, out float prob) {
     int n = u_light_count;
     int lo = 0, hi = n - 1;
@@ -90,91 +80,6 @@ int select_light(float u, out float prob) {
 }
 
 float light_select_prob(int i) { return light_cdf[u_light_count + i]; }
-
-LightSample sample_light(Light L, vec3 p, vec2 u2, float u3) {
-    LightSample s;
-    s.delta = false;
-    s.pdf = 0.0;
-    s.Li = vec3(0.0);
-    s.dir = vec3(0.0, 0.0, 1.0);
-    s.dist = 0.0;
-    int type = int(L.pos_type.w + 0.5);
-    if (type == LIGHT_POINT || type == LIGHT_SPOT) {
-        vec3 c = L.pos_type.xyz;
-        float r = L.dir_radius.w;
-        vec3 toc = c - p;
-        float d2 = dot(toc, toc);
-        float d = sqrt(d2);
-        vec3 w = toc / d;
-        float atten = type == LIGHT_SPOT ? spot_attenuation(L, -w) : 1.0;
-        if (r <= 0.0) {
-            s.delta = true;
-            s.dir = w;
-            s.dist = d;
-            s.Li = L.color.rgb * atten / d2;  // intensity / d^2 (irradiance at normal incidence)
-            s.pdf = 1.0;
-            return s;
-        }
-        if (d <= r) return s;  // inside the sphere
-        float sin2 = r * r / d2;
-        float cos_max = sqrt(max(0.0, 1.0 - sin2));
-        vec3 lw = sample_cone(u2, cos_max);
-        vec3 dir = to_world(lw, w);
-        float t = intersect_sphere(c, r, p, dir);
-        if (t <= 0.0) t = d - r;
-        s.dir = dir;
-        s.dist = t;
-        s.Li = L.color.rgb * atten / (PI * r * r);  // sphere radiance = I / (pi r^2)
-        s.pdf = cone_pdf(cos_max);
-        return s;
-    }
-    if (type == LIGHT_SUN) {
-        float half_angle = L.dir_radius.w;
-        vec3 w = -L.dir_radius.xyz;
-        s.dist = T_INF;
-        if (half_angle <= 1e-6) {
-            s.delta = true;
-            s.dir = w;
-            s.Li = L.color.rgb;
-            s.pdf = 1.0;
-            return s;
-        }
-        float cos_max = cos(half_angle);
-        s.dir = to_world(sample_cone(u2, cos_max), w);
-        float sin_a = sin(half_angle);
-        s.Li = L.color.rgb / (PI * sin_a * sin_a);
-        s.pdf = cone_pdf(cos_max);
-        return s;
-    }
-    if (type == LIGHT_AREA) {
-        vec3 q = area_light_point(L, u2);
-        vec3 n = L.dir_radius.xyz;
-        vec3 d = q - p;
-        float dist = length(d);
-        if (dist <= 0.0) return s;
-        s.dir = d / dist;
-        if (dot(s.dir, n) >= 0.0) return s;  // p behind the emitting face
-        s.dist = dist;
-        s.Li = L.color.rgb;
-        s.pdf = area_to_solid_angle_pdf(p, q, n, L.axis_v.w);
-        return s;
-    }
-    // LIGHT_MESH: a triangle by power, then a uniform point on it (two-sided emission)
-    float tri_prob;
-    int e = pick_emitter(L, u3, tri_prob);
-    Emitter em = emitters[e];
-    vec2 b = sample_triangle(u2);
-    vec3 q = (1.0 - b.x - b.y) * em.p0.xyz + b.x * em.p1.xyz + b.y * em.p2.xyz;
-    vec3 n = normalize(cross(em.p1.xyz - em.p0.xyz, em.p2.xyz - em.p0.xyz));
-    vec3 d = q - p;
-    float dist = length(d);
-    if (dist <= 0.0) return s;
-    s.dir = d / dist;
-    s.dist = dist;
-    s.Li = em.radiance.rgb;
-    s.pdf = tri_prob * area_to_solid_angle_pdf(p, q, n, em.p0.w);
-    return s;
-}
 
 // ---------------------------------------------------------------- MIS pdfs of lights hit by BSDF rays
 // Light index of the mesh light built from `instance`, -1 if none.
