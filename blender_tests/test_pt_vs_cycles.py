@@ -331,7 +331,7 @@ def test_bvh_over_ssbo_limit_is_a_scene_error(monkeypatch):
     scene = build("cornell", 16)
     sd = export_scene(evaluated_depsgraph(scene))
     bpy.data.scenes.remove(scene)
-    monkeypatch.setattr(pt_mod, "max_ssbo_bytes", lambda ctx: 256)
+    monkeypatch.setattr(rt_scene, "max_ssbo_bytes", lambda ctx: 256)  # checked by the shared SceneRT
     with pytest.raises(SceneError, match="GL_MAX_SHADER_STORAGE_BLOCK_SIZE"):
         session.render(sd, "PT", 0, 1, session="pt_limit_test")
     # the post-build check of every buffer (RtBuffers) names the limit too

@@ -1,16 +1,31 @@
-"""GPU side of the two-level BVH: uploads ``bvh.SceneBVH`` into the SSBOs of
-``shaders/lib/bvh.glsl`` and binds them (bpy-free; runs on the GL thread).
+"""The scene ray-tracing component shared by every pass that traces rays (bpy-free; GL thread).
+
+``SceneRT`` (one per ``GPUScene``, from ``gpu_scene.rt()``) owns the two-level BVH on the GPU
+(``RtBuffers``: the SSBOs of ``shaders/lib/bvh.glsl``) and the light-selection table of
+``shaders/lib/scene_rt.glsl``; with the GPUScene's material, light and emitter buffers and
+texture array it is everything a compute pass needs to call ``scene_trace``,
+``scene_occluded``, ``select_light``/``light_pdf``, ``shade_direct`` and
+``bsdf_hit_light_mis``. Two graphs of a session share one SceneRT, hence one BVH. It rebuilds
+the bottom levels only when mesh geometry changes and only the top level when instances move;
+a pass uses it with::
+
+    rt = rc.scene.rt()                         # brings it up to date with the GPUScene
+    prog = rc.programs.compute("x/y.comp", rt.defines)
+    rt.bind(prog)                              # scene buffers, textures, BVH, light table
 
 Binding points default to ``RT_BINDINGS`` and are passed to shaders as the ``RT_BINDING_*``
-defines of bvh.glsl (see :meth:`RtBuffers.defines`), so a technique that needs other
-binding points changes them in one place.
+defines (see :meth:`RtBuffers.defines`), so a technique that needs other binding points
+changes them in one place.
 """
 from __future__ import annotations
+
+import hashlib
+import time
 
 import numpy as np
 
 from .bvh import SceneBVH
-from .scene_data import SceneError
+from .scene_data import LightType, SceneError
 
 # What GL guarantees when the driver does not say (OpenGL 4.3: at least 2^27 bytes).
 GL_MIN_SSBO_BLOCK = 1 << 27
@@ -48,6 +63,7 @@ RT_BINDINGS = {
     "tri_info": 12,
     "instances": 13,
     "material_map": 14,
+    "light_select": 15,
 }
 _DEFINE = {
     "nodes": "RT_BINDING_BLAS_NODES",
@@ -57,6 +73,7 @@ _DEFINE = {
     "tri_info": "RT_BINDING_TRI_INFO",
     "instances": "RT_BINDING_INSTANCES",
     "material_map": "RT_BINDING_MATERIAL_MAP",
+    "light_select": "RT_BINDING_LIGHT_SELECT",
 }
 
 
@@ -105,3 +122,162 @@ class RtBuffers:
         for b in self.buffers.values():
             b.release()
         self.buffers.clear()
+
+
+# ---------------------------------------------------------------------------- SceneRT
+VERT_BYTES_PER_TRIANGLE = 48  # bvh.glsl: three vec4 corners per triangle (the largest buffer)
+
+
+def geometry_key(scene) -> str:
+    """Content hash of the meshes (what the BLAS depend on)."""
+    h = hashlib.blake2b(digest_size=16)
+    for m in scene.meshes:
+        for a in (m.positions, m.normals, m.uvs, m.material_ids):
+            a = np.ascontiguousarray(a)
+            h.update(str(a.shape).encode())
+            h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def instance_key(scene) -> str:
+    """Hash of the instances (transforms, meshes, material maps): what the TLAS depends on."""
+    return hashlib.blake2b(b"".join(np.ascontiguousarray(i.matrix, np.float32).tobytes()
+                                    + str(i.mesh).encode()
+                                    + (b"" if i.material_map is None else np.asarray(i.material_map).tobytes())
+                                    for i in scene.instances), digest_size=16).hexdigest()
+
+
+def light_selection(scene, light_array: np.ndarray, count: int) -> np.ndarray:
+    """Selection probabilities proportional to power (suns: irradiance x the scene's
+    cross-section), as [cdf..., prob...] (the first 2n floats of scene_rt.glsl's table)."""
+    n = int(count)
+    if n == 0:
+        return np.zeros(2, np.float32)
+    lo, hi = scene.world_bounds()
+    radius = max(float(np.linalg.norm(hi - lo)) * 0.5, 1e-3)
+    typ = np.rint(light_array[:n, 3]).astype(int)
+    w = np.maximum(light_array[:n, 11].astype(np.float64), 0.0)
+    w = np.where(typ == int(LightType.SUN), w * np.pi * radius * radius, w)
+    if w.sum() <= 0:
+        w[:] = 1.0
+    prob = w / w.sum()
+    cdf = np.cumsum(prob)
+    cdf[-1] = 1.0
+    return np.concatenate([cdf, prob]).astype(np.float32)
+
+
+def light_table(scene, light_array: np.ndarray, count: int, emitter_groups) -> np.ndarray:
+    """scene_rt.glsl's RtLightSelect buffer: [cdf (n), prob (n), mesh light per instance]."""
+    sel = light_selection(scene, light_array, count)
+    inst = np.full(max(len(scene.instances), 1), -1.0, np.float32)
+    first_mesh_light = int(count) - len(emitter_groups)
+    for gi, g in enumerate(emitter_groups):
+        inst[int(g["instance"])] = first_mesh_light + gi
+    if int(count) == 0:
+        sel = np.zeros(0, np.float32)
+    return np.concatenate([sel, inst]).astype(np.float32)
+
+
+def check_triangle_budget(scene, limit: int) -> None:
+    """Refuse, with a SceneError naming the limit, a scene whose BVH vertex buffer would exceed
+    the GL context's GL_MAX_SHADER_STORAGE_BLOCK_SIZE (128 MiB on llvmpipe: ~2.8 M triangles),
+    before spending time building it. RtBuffers checks every buffer again after the build."""
+    tris = sum(scene.meshes[i].triangle_count for i in sorted({inst.mesh for inst in scene.instances}))
+    need = tris * VERT_BYTES_PER_TRIANGLE
+    if need > limit:
+        raise SceneError(
+            f"Ray tracing cannot hold this scene: its {tris:,} triangles need {need / 2**20:.0f} MiB of "
+            f"vertex data in one shader storage block, more than this GPU driver allows "
+            f"(GL_MAX_SHADER_STORAGE_BLOCK_SIZE = {limit / 2**20:.0f} MiB, about "
+            f"{limit // VERT_BYTES_PER_TRIANGLE:,} triangles). Reduce the triangle count (lower "
+            f"Subdivision or Decimate levels, hide objects from rendering) or pick a rasterisation "
+            f"technique.")
+
+
+class SceneRT:
+    """The scene ray-tracing component of one GPUScene (see the module docstring).
+
+    Stats (for benchmarks and tests): ``bvh_ms`` (the last BVH work, build or refit),
+    ``blas_builds`` and ``tlas_builds`` (how often each level was rebuilt since creation)."""
+
+    def __init__(self, gpu_scene, bindings: dict | None = None):
+        self.gpu_scene = gpu_scene
+        self.ctx = gpu_scene.ctx
+        self.bindings = dict(RT_BINDINGS, **(bindings or {}))
+        self.buffers: RtBuffers | None = None
+        self._select_buf = None
+        self._geo_key = self._inst_key = self._light_key = None
+        self._version = None
+        self._scene = None
+        self.bvh_ms = 0.0
+        self.blas_builds = 0
+        self.tlas_builds = 0
+
+    def update(self) -> "SceneRT":
+        """Bring the BVH and the light table up to date with the GPUScene (cheap when unchanged)."""
+        gs = self.gpu_scene
+        scene = gs.scene
+        if scene is None:
+            raise SceneError("the GPU scene is empty: update it with a scene before tracing rays")
+        if self.buffers is not None and self._version == gs.version and self._scene is scene:
+            return self
+        key = geometry_key(scene)
+        inst_key = instance_key(scene)
+        if self.buffers is None or key != self._geo_key:
+            check_triangle_budget(scene, max_ssbo_bytes(self.ctx))  # before a long BVH build
+            t0 = time.perf_counter()
+            if self.buffers is not None:
+                self.buffers.release()
+                self.buffers = None
+            self.buffers = RtBuffers(self.ctx, SceneBVH.from_scene(scene), self.bindings)
+            self._geo_key, self._inst_key = key, inst_key
+            self.bvh_ms = (time.perf_counter() - t0) * 1e3
+            self.blas_builds += 1
+            self.tlas_builds += 1
+        elif inst_key != self._inst_key:
+            t0 = time.perf_counter()
+            self.buffers.update_instances(scene)  # objects moved: top level only
+            self._inst_key = inst_key
+            self.bvh_ms = (time.perf_counter() - t0) * 1e3
+            self.tlas_builds += 1
+        table = light_table(scene, gs.light_array, gs.light_count, gs.emitters.groups if gs.emitters else [])
+        data = table.tobytes()
+        if self._select_buf is None or self._select_buf.size != len(data):
+            if self._select_buf is not None:
+                self._select_buf.release()
+            self._select_buf = self.ctx.buffer(data)
+        else:
+            self._select_buf.write(data)
+        self._version, self._scene = gs.version, scene
+        return self
+
+    @property
+    def defines(self) -> dict:
+        """The binding-point defines of bvh.glsl / scene_rt.glsl for ``programs.compute``."""
+        return {_DEFINE[k]: v for k, v in self.bindings.items()}
+
+    def bind(self, prog, texture_unit: int = 0) -> None:
+        """Bind everything scene_rt.glsl reads: the GPUScene's buffers and texture array, the
+        BVH, the light table, and the uniforms (light/material counts, world radiance)."""
+        from .gpu_scene import set_uniform
+
+        if self.buffers is None:
+            self.update()
+        gs = self.gpu_scene
+        gs.bind(prog, texture_unit)
+        self.buffers.bind()
+        self._select_buf.bind_to_storage_buffer(self.bindings["light_select"])
+        set_uniform(prog, "u_rt_world", tuple(float(x) for x in gs.scene.world.color))
+
+    @property
+    def nbytes(self) -> int:
+        return (self.buffers.nbytes if self.buffers else 0) + (self._select_buf.size if self._select_buf else 0)
+
+    def release(self) -> None:
+        if self.buffers is not None:
+            self.buffers.release()
+            self.buffers = None
+        if self._select_buf is not None:
+            self._select_buf.release()
+            self._select_buf = None
+        self._geo_key = self._inst_key = self._version = self._scene = None

@@ -126,6 +126,48 @@ float area_to_solid_angle_pdf(vec3 p, vec3 q, vec3 ln, float area) {
     return cosl > 1e-8 ? dist2 / (cosl * area) : 0.0;
 }
 
+// ---- The BSDF half of MIS: does a ray leaving o along d see light L? (one copy, used by
+// PT's bsdf_hit_light_mis in lib/scene_rt.glsl and by DIRECT's glossy MIS.)
+// Area lights (front face) and sphere lights (point/spot with radius) are hit when their
+// distance lies in (tmin, tmax); sun disks only by rays that escape (tmax >= T_INF) inside the
+// disk. Lights are transparent (Cycles): nothing else is tested. On a hit returns true with
+// the radiance Le arriving along d and the solid-angle pdf with which sample_light() would
+// have produced this direction (the light's own pdf, without its selection probability).
+// Point and sun lights without size and mesh lights are never hit (mesh lights are surfaces:
+// the caller finds them with the BVH).
+bool light_ray_hit(Light L, vec3 o, vec3 d, float tmin, float tmax, out vec3 Le, out float pdf) {
+    Le = vec3(0.0);
+    pdf = 0.0;
+    int type = int(L.pos_type.w + 0.5);
+    if (type == LIGHT_AREA) {
+        float t = intersect_area_light(L, o, d);
+        if (t > tmin && t < tmax) {
+            Le = L.color.rgb;
+            pdf = area_to_solid_angle_pdf(o, o + t * d, L.dir_radius.xyz, L.axis_v.w);
+        }
+    } else if ((type == LIGHT_POINT || type == LIGHT_SPOT) && L.dir_radius.w > 0.0) {
+        float r = L.dir_radius.w;
+        float t = intersect_sphere(L.pos_type.xyz, r, o, d);
+        if (t > tmin && t < tmax) {
+            vec3 toc = L.pos_type.xyz - o;
+            float d2 = dot(toc, toc);
+            if (d2 > r * r) {
+                float atten = type == LIGHT_SPOT ? spot_attenuation(L, normalize(-toc)) : 1.0;
+                Le = L.color.rgb * atten / (PI * r * r);
+                pdf = cone_pdf(sqrt(max(0.0, 1.0 - r * r / d2)));
+            }
+        }
+    } else if (type == LIGHT_SUN && L.dir_radius.w > 1e-6 && tmax >= T_INF) {
+        float cos_max = cos(L.dir_radius.w);
+        if (dot(d, -L.dir_radius.xyz) >= cos_max) {
+            float sin_a = sin(L.dir_radius.w);
+            Le = L.color.rgb / (PI * sin_a * sin_a);
+            pdf = cone_pdf(cos_max);
+        }
+    }
+    return pdf > 0.0;
+}
+
 #ifdef USE_SCENE_BUFFERS
 // Choose an emitter triangle of mesh light L by its power CDF; returns index, p = probability.
 int pick_emitter(Light L, float u, out float prob) {

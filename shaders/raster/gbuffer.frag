@@ -1,8 +1,10 @@
-// gbuffer.frag — writes the G-buffer: base colour (textured), shading normal (facing the
+// gbuffer.frag — writes the G-buffer: base colour (textured: lib/textures.glsl, the same
+// function the ray tracer uses), shading normal (facing the
 // viewer, as Cycles flips back faces), world position + material id, geometric normal,
 // motion vector in pixels (current - previous).
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
+#include "lib/textures.glsl"
 
 in vec3 v_world;
 in vec3 v_normal;
@@ -25,10 +27,7 @@ layout(location = 4) out vec4 o_motion;
 void main() {
     int mid = (v_material >= 0 && v_material < u_material_count) ? v_material : u_material_count;
     Material m = materials[mid];
-    vec3 base = m.base_color.rgb;
-    if (m.base_color.w >= 0.0) {
-        base = texture(u_textures, vec3(v_uv, m.base_color.w)).rgb;
-    }
+    vec3 base = material_base_color(u_textures, m, v_uv);  // as the ray tracer samples it
     vec3 geo = normalize(cross(dFdx(v_world), dFdy(v_world)));
     vec3 view = normalize(u_camera_pos - v_world);
     if (dot(geo, view) < 0.0) geo = -geo;

@@ -8,9 +8,11 @@ ellipse, emissive triangles chosen by power) combined with BSDF sampling by MIS 
 power heuristic (Veach & Guibas 1995); world colour as background and light; Russian
 roulette; bounce limits with Cycles' meaning (max total, diffuse, glossy). Each frame writes
 the mean of ``spp_per_frame`` samples; the renderer accumulates frames (progressive), and
-any change of scene or parameter restarts the accumulation there. The BVH
-(``render/bvh.py``) is rebuilt only when mesh geometry changes; moving objects rebuilds the
-top level only.
+any change of scene or parameter restarts the accumulation there. Rays, materials, light
+selection, next-event estimation and the MIS of BSDF rays hitting lights come from the shared
+ray-tracing component (``render/rt_scene.py`` SceneRT, ``shaders/lib/scene_rt.glsl``), owned
+by the session's GPUScene: its BVH (``render/bvh.py``) is rebuilt only when mesh geometry
+changes, moving objects rebuilds the top level only, and every graph of the session shares it.
 
 | parameter | range | meaning |
 |---|---|---|
@@ -27,76 +29,19 @@ AOVs: ``GI_Direct`` (paths with one scattering), ``GI_IndirectDiffuse`` /
 """
 from __future__ import annotations
 
-import hashlib
 import time
 
 import numpy as np
 
-from ..bvh import SceneBVH
 from ..framegraph import Effect, Param, Pass
 from ..gpu_scene import set_uniform
-from ..rt_scene import RtBuffers, max_ssbo_bytes
-from ..scene_data import SceneError
-from ..scene_data import LightType
+# the BVH, light selection and their checks live in the shared component (rt_scene.SceneRT);
+# re-exported here for scripts written against the old names
+from ..rt_scene import check_triangle_budget, geometry_key, light_selection  # noqa: F401
 from . import Technique, register
 
 COLOR = "color"
 AOV_DIRECT, AOV_IND_DIFFUSE, AOV_IND_GLOSSY = "aov.pt_direct", "aov.pt_indirect_diffuse", "aov.pt_indirect_glossy"
-BIND_LIGHT_CDF = 15
-LIGHT_MESH = 4
-
-
-def geometry_key(scene) -> str:
-    """Content hash of the meshes (what the BLAS depend on)."""
-    h = hashlib.blake2b(digest_size=16)
-    for m in scene.meshes:
-        for a in (m.positions, m.normals, m.uvs, m.material_ids):
-            a = np.ascontiguousarray(a)
-            h.update(str(a.shape).encode())
-            h.update(a.tobytes())
-    return h.hexdigest()
-
-
-def light_selection(scene, light_array: np.ndarray, count: int) -> np.ndarray:
-    """Selection probabilities proportional to power (suns: irradiance x the scene's
-    cross-section), as [cdf..., prob...] for pt.comp's LightCdf buffer."""
-    n = int(count)
-    if n == 0:
-        return np.zeros(2, np.float32)
-    lo, hi = scene.world_bounds()
-    radius = max(float(np.linalg.norm(hi - lo)) * 0.5, 1e-3)
-    w = np.zeros(n, np.float64)
-    for i in range(n):
-        typ = int(round(light_array[i, 3]))
-        power = float(light_array[i, 11])
-        if typ == int(LightType.SUN):
-            power *= np.pi * radius * radius
-        w[i] = max(power, 0.0)
-    if w.sum() <= 0:
-        w[:] = 1.0
-    prob = w / w.sum()
-    cdf = np.cumsum(prob)
-    cdf[-1] = 1.0
-    return np.concatenate([cdf, prob]).astype(np.float32)
-
-
-VERT_BYTES_PER_TRIANGLE = 48  # bvh.glsl: three vec4 corners per triangle (the largest buffer)
-
-
-def check_triangle_budget(scene, limit: int) -> None:
-    """Refuse, with a SceneError naming the limit, a scene whose BVH vertex buffer would exceed
-    the GL context's GL_MAX_SHADER_STORAGE_BLOCK_SIZE (128 MiB on llvmpipe: ~2.8 M triangles),
-    before spending time building it. RtBuffers checks every buffer again after the build."""
-    tris = sum(scene.meshes[i].triangle_count for i in sorted({inst.mesh for inst in scene.instances}))
-    need = tris * VERT_BYTES_PER_TRIANGLE
-    if need > limit:
-        raise SceneError(
-            f"PT cannot trace this scene: its {tris:,} triangles need {need / 2**20:.0f} MiB of "
-            f"vertex data in one shader storage block, more than this GPU driver allows "
-            f"(GL_MAX_SHADER_STORAGE_BLOCK_SIZE = {limit / 2**20:.0f} MiB, about "
-            f"{limit // VERT_BYTES_PER_TRIANGLE:,} triangles). Reduce the triangle count (lower "
-            f"Subdivision or Decimate levels, hide objects from rendering) or pick a rasterisation "
-            f"technique.")
 
 
 class PathTracePass(Pass):
@@ -118,57 +63,23 @@ class PathTracePass(Pass):
 
     def __init__(self, quality=None, **props):
         super().__init__(quality, **props)
-        self.rt: RtBuffers | None = None
-        self._geo_key = None
-        self._inst_key = None
-        self._cdf_buf = None
         self.bvh_ms = 0.0
 
     def compile(self, rc):
         for name in self.writes:
             rc.texture(name, 4, "f4")
 
-    def _update_bvh(self, rc):
-        scene = rc.scene.scene
-        key = geometry_key(scene)
-        inst_key = hashlib.blake2b(b"".join(np.ascontiguousarray(i.matrix, np.float32).tobytes()
-                                            + str(i.mesh).encode()
-                                            + (b"" if i.material_map is None else np.asarray(i.material_map).tobytes())
-                                            for i in scene.instances), digest_size=16).hexdigest()
-        if self.rt is None or key != self._geo_key:
-            check_triangle_budget(scene, max_ssbo_bytes(rc.ctx))  # before a long BVH build
-            t0 = time.perf_counter()
-            if self.rt is not None:
-                self.rt.release()
-            self.rt = RtBuffers(rc.ctx, SceneBVH.from_scene(scene))
-            self._geo_key, self._inst_key = key, inst_key
-            self.bvh_ms = (time.perf_counter() - t0) * 1e3
-        elif inst_key != self._inst_key:
-            t0 = time.perf_counter()
-            self.rt.update_instances(scene)  # objects moved: top level only
-            self._inst_key = inst_key
-            self.bvh_ms = (time.perf_counter() - t0) * 1e3
-        cdf = light_selection(scene, rc.scene.light_array, rc.scene.light_count).tobytes()
-        if self._cdf_buf is None or self._cdf_buf.size != len(cdf):
-            if self._cdf_buf is not None:
-                self._cdf_buf.release()
-            self._cdf_buf = rc.ctx.buffer(cdf)
-        else:
-            self._cdf_buf.write(cdf)
-
     def execute(self, rc, frame):
-        self._update_bvh(rc)
+        rt = rc.scene.rt()  # the session's shared BVH (rebuilt there only when geometry changes)
+        self.bvh_ms = rt.bvh_ms
         scene = rc.scene.scene
         cam = scene.camera
-        prog = rc.programs.compute("pt/pt.comp", {**self.rt.defines, "BIND_LIGHT_CDF": BIND_LIGHT_CDF})
-        rc.scene.bind(prog)
-        self.rt.bind()
-        self._cdf_buf.bind_to_storage_buffer(BIND_LIGHT_CDF)
+        prog = rc.programs.compute("pt/pt.comp", rt.defines)
+        rt.bind(prog)
         set_uniform(prog, "u_cam_to_world", np.asarray(cam.matrix_world, np.float32))
         set_uniform(prog, "u_inv_proj", np.linalg.inv(np.asarray(cam.projection, np.float64)).astype(np.float32))
         set_uniform(prog, "u_ortho", 1 if cam.type == "ORTHO" else 0)
         set_uniform(prog, "u_clip_start", float(cam.clip_start))
-        set_uniform(prog, "u_world", tuple(float(x) for x in scene.world.color))
         set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
         set_uniform(prog, "u_seed", int(frame.seed) & 0xFFFFFFFF)
         set_uniform(prog, "u_spp", int(self["spp_per_frame"]))
@@ -184,14 +95,6 @@ class PathTracePass(Pass):
             for x in range(0, rc.width, tile):
                 set_uniform(prog, "u_offset", (x, y))
                 rc.dispatch(prog, (min(tile, rc.width - x) + 7) // 8, (min(tile, rc.height - y) + 7) // 8)
-
-    def release(self):
-        if self.rt is not None:
-            self.rt.release()
-            self.rt = None
-        if self._cdf_buf is not None:
-            self._cdf_buf.release()
-            self._cdf_buf = None
 
 
 def render_offline(ctx, scene, frames: int, *, spp_per_frame: int = 4, seed: int = 0, programs=None,
@@ -215,6 +118,7 @@ def render_offline(ctx, scene, frames: int, *, spp_per_frame: int = 4, seed: int
     aovs = {n: np.zeros((scene.height, scene.width, 3), np.float64) for n in p.writes[1:]}
     p.execute(rc, FrameState(index=0, sample=0, seed=seed))  # warm-up: BVH, compile
     ctx.finish()
+    bvh_ms = p.bvh_ms
     t0 = time.perf_counter()
     for f in range(frames):
         p.execute(rc, FrameState(index=f, sample=f, seed=seed))
@@ -226,7 +130,6 @@ def render_offline(ctx, scene, frames: int, *, spp_per_frame: int = 4, seed: int
     dt = (time.perf_counter() - t0) * 1e3
     for n in aovs:
         aovs[n] /= max(frames, 1)
-    bvh_ms = p.bvh_ms
     p.release()
     rc.resources.release()
     if own_scene:

@@ -1,0 +1,192 @@
+// scene_rt.glsl — the scene ray-tracing component every compute pass binds (PT, DIRECT's
+// ray-traced shadows, later ReSTIR, probes, surfels, ...). Host side: addon/render/rt_scene.py
+// (SceneRT, one per GPUScene: `rt = rc.scene.rt(); prog = programs.compute(path, rt.defines);
+// rt.bind(prog)`).
+//
+// Include after: common.glsl (with USE_SCENE_BUFFERS), sampling.glsl, rng.glsl, brdf.glsl,
+// lights.glsl; this file includes bvh.glsl and textures.glsl.
+//
+// API
+//   Ray/scene intersection with the surface interaction, materials sampled as the G-buffer does:
+//     SurfaceHit s;  bool hit = scene_trace(o, d, tmin, tmax, s);
+//     bool blocked = scene_occluded(o, d, tmin, tmax);
+//     Material m = scene_material(id);   vec3 base = scene_base_color(m, uv);
+//   Light selection (by power; suns weighted by the scene's cross-section):
+//     int i = select_light(u, prob);     float prob = light_pdf(i);
+//     int li = mesh_light_of(instance);  // the mesh light built from an emissive instance, -1 none
+//   Direct light at any surface point (next-event estimation: one light by power, one point on
+//   it, one shadow ray through the BVH):
+//     vec3 Ld = shade_direct(s, V, rng);              // alone: unbiased, light sampling only
+//     vec3 Ld = shade_direct_mis(s, V, rng);          // weighted for MIS with a BSDF ray whose
+//                                                     //   emission is taken by bsdf_hit_light_mis
+//   Emission seen by a BSDF-sampled ray (lights crossed, sun disks and the world on a miss, an
+//   emissive surface on a hit), MIS-weighted against shade_direct_mis's light sampling; the one
+//   copy of that block (PT uses it for every bounce):
+//     vec3 Le = bsdf_hit_light_mis(o, d, tmin, hit, s, bsdf_pdf, lights_visible);
+// Conventions: SurfaceHit.geo_normal is the winding's normal (not flipped); surface_frame()
+// gives the two-sided shading frame facing V, as Cycles shades back faces. Lights are
+// transparent to rays (Cycles): scene_trace and scene_occluded see triangles only.
+#ifndef GI_SCENE_RT_GLSL
+#define GI_SCENE_RT_GLSL
+
+#include "lib/bvh.glsl"
+#include "lib/textures.glsl"
+
+#ifndef RT_BINDING_LIGHT_SELECT
+#define RT_BINDING_LIGHT_SELECT 15
+#endif
+// [0, n): cdf of selecting lights 0..i; [n, 2n): probability of light i;
+// [2n, 2n + instances): the mesh light of each instance (-1: not emissive), as floats
+layout(std430, binding = RT_BINDING_LIGHT_SELECT) readonly buffer RtLightSelect { float rt_light_select[]; };
+
+uniform sampler2DArray u_textures;
+uniform int u_material_count;
+uniform vec3 u_rt_world;  // the world's uniform radiance (background and light)
+
+struct SurfaceHit {
+    float t;
+    vec3 position;     // world space
+    vec3 geo_normal;   // world, unit, from the triangle's winding (not flipped towards the ray)
+    vec3 normal;       // world, unit, interpolated corner normal (not flipped)
+    vec2 uv;
+    int material;      // index into the material buffer (out-of-range ids: the default record)
+    int instance;      // SceneData.instances index
+    int prim;          // triangle in BVH order
+    int triangle;      // original triangle index within its mesh
+    Surface bsdf;      // lib/brdf.glsl surface with the base colour textured (emission inside)
+};
+
+Material scene_material(int id) {
+    if (id < 0 || id >= u_material_count) id = u_material_count;  // the default material record
+    return materials[id];
+}
+
+vec3 scene_base_color(Material m, vec2 uv) { return material_base_color(u_textures, m, uv); }
+
+bool scene_trace(vec3 o, vec3 d, float tmin, float tmax, out SurfaceHit s) {
+    RtHit h = rt_miss();
+    s.t = T_INF;
+    s.instance = -1;
+    s.prim = -1;
+    if (!rt_trace_closest(o, d, tmin, tmax, h)) return false;
+    RtSurface sf = rt_surface(h);
+    s.t = h.t;
+    s.position = sf.position;
+    s.geo_normal = sf.geo_normal;
+    s.normal = sf.normal;
+    s.uv = sf.uv;
+    s.instance = h.instance;
+    s.prim = h.prim;
+    s.triangle = sf.triangle;
+    int mid = (sf.material < 0 || sf.material >= u_material_count) ? u_material_count : sf.material;
+    s.material = mid;
+    Material m = materials[mid];
+    s.bsdf = make_surface(m, scene_base_color(m, sf.uv));
+    return true;
+}
+
+bool scene_occluded(vec3 o, vec3 d, float tmin, float tmax) { return rt_trace_any(o, d, tmin, tmax); }
+
+// Two-sided shading frame facing V: Ng and N flipped together to V's side; a shading normal
+// still facing away falls back to Ng. p = the shading point moved off the surface along Ng
+// (rays leave from there).
+void surface_frame(SurfaceHit s, vec3 V, out vec3 N, out vec3 Ng, out vec3 p) {
+    Ng = s.geo_normal;
+    N = s.normal;
+    if (dot(Ng, V) < 0.0) { Ng = -Ng; N = -N; }
+    if (dot(N, V) <= 0.0) N = Ng;
+    p = rt_offset_ray(s.position, Ng);
+}
+
+// ---------------------------------------------------------------- light selection
+int select_light(float u, out float prob) {
+    int n = u_light_count;
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (rt_light_select[mid] <= u) lo = mid + 1; else hi = mid;
+    }
+    prob = rt_light_select[n + lo];
+    return lo;
+}
+
+float light_pdf(int i) { return rt_light_select[u_light_count + i]; }
+
+int mesh_light_of(int instance) {
+    return instance < 0 ? -1 : int(floor(rt_light_select[2 * u_light_count + instance] + 0.5));
+}
+
+// ---------------------------------------------------------------- next-event estimation
+// One light by power, one point on it (sample_light, from the offset origin p so the shadow
+// ray ends exactly at the sample), a shadow ray for lights that cast shadows. Returns
+// f * Li * w / pdf for the surface (bs, N, Ng) seen from V; w = power heuristic against
+// the BSDF's pdf when mis (delta lights: 1), else 1. Consumes one rng_next4 when there are lights.
+vec3 shade_direct_at(Surface bs, vec3 p, vec3 N, vec3 Ng, vec3 V, inout Rng rng, bool mis) {
+    if (u_light_count <= 0) return vec3(0.0);
+    vec4 ul = rng_next4(rng);
+    float sel;
+    int li = select_light(ul.x, sel);
+    Light L = lights[li];
+    LightSample ls = sample_light(L, p, ul.yz, ul.w);
+    if (ls.pdf <= 0.0 || sel <= 0.0 || dot(ls.dir, Ng) <= 0.0) return vec3(0.0);
+    BsdfEval fe = eval_principled(bs, N, V, ls.dir);
+    vec3 f = fe.diffuse + fe.glossy;
+    if (max3(f) <= 0.0 || max3(ls.Li) <= 0.0) return vec3(0.0);
+    if (L.axis_w.w > 0.5 && scene_occluded(p, ls.dir, 0.0, ls.dist * (1.0 - 1e-4))) return vec3(0.0);
+    float lpdf = sel * ls.pdf;
+    float w = (ls.delta || !mis) ? 1.0 : power_heuristic(lpdf, pdf_principled(bs, N, V, ls.dir));
+    return f * ls.Li * (w / lpdf);
+}
+
+vec3 shade_direct(SurfaceHit s, vec3 V, inout Rng rng) {
+    vec3 N, Ng, p;
+    surface_frame(s, V, N, Ng, p);
+    return shade_direct_at(s.bsdf, p, N, Ng, V, rng, false);
+}
+
+vec3 shade_direct_mis(SurfaceHit s, vec3 V, inout Rng rng) {
+    vec3 N, Ng, p;
+    surface_frame(s, V, N, Ng, p);
+    return shade_direct_at(s.bsdf, p, N, Ng, V, rng, true);
+}
+
+// ---------------------------------------------------------------- BSDF rays hitting lights
+// Emission a BSDF-sampled ray (o, d) from tmin collects: lights crossed before the surface
+// (area, sphere), on a miss the sun disks and the world, on a hit the surface's emission
+// (two-sided; MIS against its mesh light). bsdf_pdf = the pdf the direction was sampled with
+// (0: a camera ray, no MIS). lights_visible = false skips light objects (Blender's default
+// for camera rays: light objects are not visible to the camera).
+vec3 bsdf_hit_light_mis(vec3 o, vec3 d, float tmin, bool hit, SurfaceHit s, float bsdf_pdf, bool lights_visible) {
+    vec3 sum = vec3(0.0);
+    float t_surf = hit ? s.t : T_INF;
+    for (int i = 0; i < u_light_count && lights_visible; ++i) {
+        vec3 Le;
+        float lpdf;
+        if (light_ray_hit(lights[i], o, d, tmin, t_surf, Le, lpdf)) {
+            float w = bsdf_pdf > 0.0 ? power_heuristic(bsdf_pdf, light_pdf(i) * lpdf) : 1.0;
+            sum += Le * w;
+        }
+    }
+    if (!hit) return sum + u_rt_world;
+    vec3 E = s.bsdf.emission;
+    if (max3(E) > 0.0) {
+        float w = 1.0;
+        int li = bsdf_pdf > 0.0 ? mesh_light_of(s.instance) : -1;
+        if (li >= 0) {
+            Light L = lights[li];
+            RtInstance inst = rt_instances[s.instance];
+            vec3 p0 = (inst.object_to_world * vec4(rt_verts[3 * s.prim].xyz, 1.0)).xyz;
+            vec3 p1 = (inst.object_to_world * vec4(rt_verts[3 * s.prim + 1].xyz, 1.0)).xyz;
+            vec3 p2 = (inst.object_to_world * vec4(rt_verts[3 * s.prim + 2].xyz, 1.0)).xyz;
+            float area = 0.5 * length(cross(p1 - p0, p2 - p0));
+            float tri_power = area * (E.r + E.g + E.b) / 3.0 * PI;
+            float tri_prob = tri_power / max(L.color.w, 1e-20);
+            float lpdf = light_pdf(li) * tri_prob * area_to_solid_angle_pdf(o, s.position, s.geo_normal, area);
+            w = power_heuristic(bsdf_pdf, lpdf);
+        }
+        sum += E * w;
+    }
+    return sum;
+}
+
+#endif
