@@ -388,7 +388,22 @@ class GPUScene:
                 set_uniform(prog, "u_prev_model", self.prev_matrices.get(name, M))
             self.vao(key, prog).render(vertices=n)
 
+    def rt(self):
+        """The scene ray-tracing component (``rt_scene.SceneRT``) of this GPU scene, built on
+        first use and brought up to date with the last ``update()``: every pass and graph of a
+        session shares it (one BVH). Raises SceneError when the scene cannot be ray traced."""
+        rt = getattr(self, "_rt", None)
+        if rt is None:
+            from .rt_scene import SceneRT
+
+            rt = self._rt = SceneRT(self)
+        return rt.update()
+
     def release(self):
+        rt = getattr(self, "_rt", None)
+        if rt is not None:
+            rt.release()
+            self._rt = None
         for vao in self._vaos.values():
             vao.release()
         for vbo, _ in self._vbos.values():
