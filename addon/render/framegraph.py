@@ -1,23 +1,46 @@
-"""The frame graph: passes that declare what they provide, read, write and keep.
+"""The frame graph: passes declare what they provide, read, write and keep; the graph owns
+the resources, the order, the memory barriers and the history.
 
-The pass contract (docs/ARCHITECTURE.md):
+The pass contract (docs/ARCHITECTURE.md has the full table):
 
 * ``provides``: the effects a pass contributes (``Effect``); the planner runs a pass only
   when the scene calls for one of them, or when a running pass reads what it writes.
-* ``reads`` / ``writes``: resource names (a pass that writes what a running pass reads
-  runs too; ``optional_reads`` are used when present and pull nothing in) (``"gbuffer.normal"``, ``"shadow.atlas"``,
-  ``"color"``); ``history``: resources kept across frames (reset on any parameter change).
-* ``params``: ``Param`` declarations with ranges; ``quality_ladder``: one dict of parameter
-  values per quality level (the cost/accuracy sweep walks it).
-* ``compile(rc)`` allocates for the current size, ``execute(rc, frame)`` runs named steps.
+* ``reads`` / ``writes``: resource names (``"gbuffer.normal"``, ``"shadow.atlas"``,
+  ``"color"``). ``optional_reads`` are used when some running pass writes them and pull
+  nothing in. A read of ``"X@prev"`` reads last frame's value of the history resource ``X``.
+* ``resources()``: typed declarations (``Res``) of what the pass writes: 2D, 2D array, 3D,
+  depth or buffer; format; size relative to the frame (optionally scaled by a parameter) or
+  absolute; transient or ``history`` (double-buffered by the graph). The graph allocates
+  them; ``rc.resources[name]`` is this frame's object.
+* ``kind``: ``"compute"`` (writes with imageStore / SSBO stores) or ``"raster"`` (writes
+  through framebuffer attachments); ``write_access`` overrides this per resource (a raster
+  voxeliser writes a 3D image with ``"image"``). The graph derives the memory barriers from
+  it.
+* ``history_resets``: which events invalidate the pass's history: ``camera_cut``,
+  ``param_change`` and the scene edits ``geometry``, ``transforms``, ``materials``,
+  ``lights``, ``textures`` (``SCENE_EDIT`` is all five). The graph applies them: it clears the
+  pass's history resources and hands the pass ``history_valid = False`` for that frame.
+* ``warmup_frames``: frames a pass's state needs to converge before an F12 render starts
+  accumulating (probes, caches, reservoirs); ``converged(rc)`` may end the warm-up early.
+* ``params``/``quality_ladder``; ``compile(rc)`` (after allocation, for pass-owned objects
+  such as framebuffers), ``execute(rc, frame)``.
 
-Techniques (``techniques/``) are lists of passes. The graph is plain Python data; its
-properties round-trip through ``get_properties``/``set_properties``.
+Planning (``FrameGraph.plan``) chooses the passes the scene needs, pulls in their
+producers, and orders them topologically. Declaration order only decides the versions of a
+resource written by several passes (``color`` written by DIRECT, then added to by each
+composite); a read with no producer, or a cycle, is a ``PlanError`` naming the pass.
+Execution (``FrameGraph.execute``) inserts ``glMemoryBarrier`` between an incoherent writer
+(image or storage stores) and every later reader or writer, recorded in ``barrier_log``.
+With ``GI_PREVIEW_VALIDATE=1`` every resource a pass writes is read back and checked for
+NaN, Inf and (for radiance) negative values; the first bad value raises
+``ValidationError`` naming the pass and the resource.
 """
 from __future__ import annotations
 
 import enum
+import heapq
 import logging
+import os
 import time
 from dataclasses import dataclass, field
 
@@ -36,6 +59,96 @@ class Effect(str, enum.Enum):
     INDIRECT_DIFFUSE = "indirect_diffuse"
     INDIRECT_SPECULAR = "indirect_specular"
     AO = "ao"
+
+
+class PlanError(ValueError):
+    """The graph cannot be planned: a read nobody writes, a cycle, a conflicting declaration."""
+
+
+class ValidationError(RuntimeError):
+    """GI_PREVIEW_VALIDATE found a NaN, Inf or negative value in a pass output."""
+
+
+# ---------------------------------------------------------------- history events
+CAMERA_CUT = "camera_cut"
+PARAM_CHANGE = "param_change"
+SCENE_EDITS = ("geometry", "transforms", "materials", "lights", "textures")
+SCENE_EDIT = frozenset(SCENE_EDITS)
+ALL_EVENTS = frozenset({CAMERA_CUT, PARAM_CHANGE}) | SCENE_EDIT
+PREV = "@prev"  # suffix: last frame's value of a history resource
+
+# ---------------------------------------------------------------- GL barrier bits (glMemoryBarrier)
+VERTEX_ATTRIB_ARRAY_BARRIER_BIT = 0x0001
+ELEMENT_ARRAY_BARRIER_BIT = 0x0002
+UNIFORM_BARRIER_BIT = 0x0004
+TEXTURE_FETCH_BARRIER_BIT = 0x0008
+SHADER_IMAGE_ACCESS_BARRIER_BIT = 0x0020
+COMMAND_BARRIER_BIT = 0x0040
+PIXEL_BUFFER_BARRIER_BIT = 0x0080
+TEXTURE_UPDATE_BARRIER_BIT = 0x0100
+BUFFER_UPDATE_BARRIER_BIT = 0x0200
+FRAMEBUFFER_BARRIER_BIT = 0x0400
+SHADER_STORAGE_BARRIER_BIT = 0x2000
+
+BARRIER_NAMES = {
+    VERTEX_ATTRIB_ARRAY_BARRIER_BIT: "VERTEX_ATTRIB_ARRAY", ELEMENT_ARRAY_BARRIER_BIT: "ELEMENT_ARRAY",
+    UNIFORM_BARRIER_BIT: "UNIFORM", TEXTURE_FETCH_BARRIER_BIT: "TEXTURE_FETCH",
+    SHADER_IMAGE_ACCESS_BARRIER_BIT: "SHADER_IMAGE_ACCESS", COMMAND_BARRIER_BIT: "COMMAND",
+    PIXEL_BUFFER_BARRIER_BIT: "PIXEL_BUFFER", TEXTURE_UPDATE_BARRIER_BIT: "TEXTURE_UPDATE",
+    BUFFER_UPDATE_BARRIER_BIT: "BUFFER_UPDATE", FRAMEBUFFER_BARRIER_BIT: "FRAMEBUFFER",
+    SHADER_STORAGE_BARRIER_BIT: "SHADER_STORAGE",
+}
+# what a later reader of a resource needs after incoherent (image / storage) writes
+TEXTURE_READ_BITS = TEXTURE_FETCH_BARRIER_BIT | SHADER_IMAGE_ACCESS_BARRIER_BIT
+BUFFER_READ_BITS = (SHADER_STORAGE_BARRIER_BIT | UNIFORM_BARRIER_BIT | VERTEX_ATTRIB_ARRAY_BARRIER_BIT
+                    | ELEMENT_ARRAY_BARRIER_BIT | COMMAND_BARRIER_BIT)
+
+
+def barrier_names(bits: int) -> list[str]:
+    return [n for b, n in BARRIER_NAMES.items() if bits & b]
+
+
+# ---------------------------------------------------------------- resources
+TEX2D, TEX2D_ARRAY, TEX3D, DEPTH, BUFFER, HOST = "tex2d", "tex2d_array", "tex3d", "depth", "buffer", "host"
+TEXTURE_KINDS = (TEX2D, TEX2D_ARRAY, TEX3D, DEPTH)
+
+
+@dataclass(frozen=True)
+class Res:
+    """A typed resource declaration.
+
+    kind: ``tex2d``, ``tex2d_array``, ``tex3d``, ``depth``, ``buffer`` or ``host`` (a Python
+    object a pass stores itself, e.g. a view range). components/dtype: texel format
+    (moderngl dtypes ``f1``, ``f2``, ``f4``, ``u4``, ``i4``). size: ``None`` = the frame size
+    times ``scale`` (a number, or the name of a pass parameter holding it); otherwise an
+    absolute (w, h) / (w, h, d or layers) or, for buffers, a byte count. ``levels``: mip
+    levels (0 = full chain). ``history``: double-buffered by the graph (``name`` is written
+    this frame, ``name@prev`` holds last frame's). ``managed=False``: the pass allocates the
+    object itself (sizes only it knows); the graph still orders, barriers and validates it.
+    ``check``: what GI_PREVIEW_VALIDATE asserts: ``radiance`` (finite, >= 0), ``finite``, or
+    ``none``. ``clear``: value the graph clears a history resource to on reset."""
+
+    name: str
+    kind: str = TEX2D
+    components: int = 4
+    dtype: str = "f4"
+    size: tuple | int | None = None
+    scale: float | str = 1.0
+    levels: int = 1
+    filter_linear: bool = False
+    history: bool = False
+    managed: bool = True
+    check: str = "finite"
+    clear: tuple = (0.0, 0.0, 0.0, 0.0)
+
+    def resolve_size(self, frame_size, props: dict):
+        if self.size is not None:
+            return tuple(self.size) if not isinstance(self.size, int) else int(self.size)
+        s = props[self.scale] if isinstance(self.scale, str) else self.scale
+        s = float(s)
+        if s == 1.0:
+            return tuple(frame_size)
+        return (max(1, int(np.ceil(frame_size[0] * s))), max(1, int(np.ceil(frame_size[1] * s))))
 
 
 @dataclass(frozen=True)
@@ -62,14 +175,18 @@ class Param:
 
 class Pass:
     """Base class of every pass. Subclasses set the class attributes and implement
-    ``compile`` and ``execute``."""
+    ``execute`` (and ``compile`` for objects they own besides declared resources)."""
 
     name: str = "pass"
+    kind: str = "compute"  # "compute" | "raster": how `writes` are written (barriers)
     provides: frozenset = frozenset()
     reads: tuple = ()
-    optional_reads: tuple = ()  # used if some running pass wrote them (e.g. shadows)
+    optional_reads: tuple = ()  # used if some running pass writes them (e.g. shadows)
     writes: tuple = ()
-    history: tuple = ()
+    declared: tuple = ()  # of Res: typed declarations of written resources (see resources())
+    write_access: dict = {}  # resource -> "image" | "storage" | "framebuffer" | "host"
+    history_resets: frozenset = ALL_EVENTS  # events that invalidate this pass's history
+    warmup_frames: int = 0  # frames of state convergence before F12 accumulates
     params: tuple = ()  # of Param
     quality_ladder: tuple = ()  # of dicts, index = quality level
     always: bool = False  # runs whatever the scene needs (e.g. the G-buffer, the final resolve)
@@ -81,6 +198,30 @@ class Pass:
             self.set_properties(self.quality_ladder[q])
         self.set_properties(props)
         self.history_valid = False
+        self.params_changed = False
+
+    # -------------------------------------------------------------- declarations
+    def resources(self) -> tuple:
+        """Typed declarations of the resources this pass writes (default: ``declared``)."""
+        return tuple(self.declared)
+
+    @property
+    def history(self) -> tuple:
+        return tuple(r.name for r in self.resources() if r.history)
+
+    def access(self, name: str, decl: "Res | None") -> str:
+        """How this pass writes ``name``: image, storage, framebuffer or host."""
+        if name in self.write_access:
+            return self.write_access[name]
+        if decl is not None and decl.kind == HOST:
+            return "host"
+        if decl is not None and decl.kind == BUFFER:
+            return "storage" if self.kind == "compute" else "host"
+        return "image" if self.kind == "compute" else "framebuffer"
+
+    def converged(self, rc) -> bool | None:
+        """Measured convergence for the warm-up (None = count ``warmup_frames``)."""
+        return None
 
     # -------------------------------------------------------------- properties
     def get_properties(self) -> dict:
@@ -98,23 +239,25 @@ class Pass:
                 self.props[k] = v
                 changed = True
         if changed:
-            self.reset_history()
+            self.params_changed = True
 
     def __getitem__(self, key):
         return self.props[key]
 
     # -------------------------------------------------------------- lifecycle
     def compile(self, rc: "RenderContext"):
-        """Allocate resources for ``rc.size``. Called when the size or scene layout changes."""
+        """Create pass-owned objects (framebuffers, ...) after the graph allocated the
+        declared resources. Called when the size or the allocation changes."""
 
     def execute(self, rc: "RenderContext", frame: "FrameState"):
         raise NotImplementedError
 
     def reset_history(self):
+        """Forget state kept outside declared resources (the graph clears those)."""
         self.history_valid = False
 
     def release(self):
-        """Free GL objects this pass owns (resources in rc.resources are freed by the graph)."""
+        """Free GL objects this pass owns (declared resources are freed by the graph)."""
 
 
 @dataclass
@@ -128,9 +271,12 @@ class FrameState:
     proj: np.ndarray | None = None  # jittered projection
     proj_unjittered: np.ndarray | None = None
     prev_view_proj: np.ndarray | None = None
-    camera_changed: bool = True
+    camera_changed: bool = True  # the view moved since the previous frame
+    camera_cut: bool = True  # the previous frame's view is not a predecessor of this one
     scene_changed: bool = True
+    scene_edits: frozenset = frozenset()  # of SCENE_EDITS categories changed since last frame
     seed: int = 0
+    warmup: bool = False  # a warm-up frame (not accumulated)
 
 
 class Resources(dict):
@@ -150,8 +296,42 @@ class Resources(dict):
         self.clear()
 
 
+def _alloc(ctx, decl: Res, size):
+    """Create the GL object of a declaration."""
+    import moderngl
+
+    filt = (moderngl.LINEAR, moderngl.LINEAR) if decl.filter_linear else (moderngl.NEAREST, moderngl.NEAREST)
+    if decl.kind == TEX2D:
+        obj = ctx.texture(size, decl.components, dtype=decl.dtype)
+    elif decl.kind == TEX2D_ARRAY:
+        obj = ctx.texture_array(size, decl.components, dtype=decl.dtype)
+    elif decl.kind == TEX3D:
+        obj = ctx.texture3d(size, decl.components, dtype=decl.dtype)
+    elif decl.kind == DEPTH:
+        return ctx.depth_texture(size)
+    elif decl.kind == BUFFER:
+        return ctx.buffer(reserve=max(4, int(size)))
+    else:
+        raise PlanError(f"resource '{decl.name}': kind '{decl.kind}' cannot be allocated")
+    if decl.levels != 1:
+        top = max(size[:2]) if decl.kind != TEX3D else max(size)
+        levels = decl.levels if decl.levels > 0 else int(np.floor(np.log2(max(top, 1)))) + 1
+        obj.build_mipmaps(0, levels - 1)
+        obj.filter = ((moderngl.LINEAR_MIPMAP_LINEAR if decl.filter_linear else moderngl.NEAREST_MIPMAP_NEAREST),
+                      filt[1])
+    else:
+        obj.filter = filt
+    obj.repeat_x = obj.repeat_y = False
+    if decl.kind == TEX3D:
+        obj.repeat_z = False
+    return obj
+
+
 class RenderContext:
-    """What passes see: the GL context, compiled programs, the GPU scene, resources, size."""
+    """What passes see: the GL context, compiled programs, the GPU scene, resources, size.
+
+    It also keeps, across frames and graphs of one session, the barrier state of every
+    resource (who last wrote it, and how) and the allocation of declared resources."""
 
     def __init__(self, ctx, programs, gpu_scene, size: tuple[int, int]):
         self.ctx = ctx
@@ -160,6 +340,10 @@ class RenderContext:
         self.size = size  # (width, height)
         self.resources = Resources()
         self.timers: dict[str, float] = {}
+        self.specs: dict[str, tuple] = {}  # resource name -> (Res, resolved size) it was allocated with
+        # barrier state: name -> [writer pass, access, pending read bits (to be made visible)]
+        self.sync: dict[str, list] = {}
+        self._clear_fbos: dict = {}
 
     @property
     def width(self) -> int:
@@ -169,27 +353,113 @@ class RenderContext:
     def height(self) -> int:
         return self.size[1]
 
+    # -------------------------------------------------------------- allocation
+    def allocate(self, decl: Res, props: dict | None = None) -> bool:
+        """Allocate ``decl`` (and its ``@prev`` twin for history) unless an object with the
+        same spec exists. Returns True when something was (re)allocated."""
+        if not decl.managed or decl.kind == HOST:
+            return False
+        size = decl.resolve_size(self.size, props or {})
+        spec = (decl.kind, decl.components, decl.dtype, size, decl.levels, decl.filter_linear)
+        names = (decl.name, decl.name + PREV) if decl.history else (decl.name,)
+        if all(self.specs.get(n, (None, None))[1] == spec and n in self.resources for n in names):
+            return False
+        for n in names:
+            old = self.resources.pop(n, None)
+            if old is not None:
+                self._drop_clear_fbo(old)
+                old.release()
+            self.resources[n] = _alloc(self.ctx, decl, size)
+            self.specs[n] = (decl, spec)
+            self.sync.pop(n, None)
+        return True
+
     def texture(self, name: str, components: int = 4, dtype: str = "f4", size=None, *, filter_linear=False):
-        """Get or create a 2D texture resource of the frame size (or ``size``)."""
-        size = tuple(size or self.size)
-        tex = self.resources.get(name)
-        if tex is not None and tex.size == size and tex.components == components and tex.dtype == dtype:
-            return tex
-        if tex is not None:
-            tex.release()
-        tex = self.ctx.texture(size, components, dtype=dtype)
-        import moderngl
+        """Get or create a 2D texture resource of the frame size (or ``size``): the same
+        allocator as declared resources, for scratch textures a pass makes on the fly."""
+        decl = Res(name, TEX2D, components, dtype, size=tuple(size) if size is not None else None,
+                   filter_linear=filter_linear)
+        self.allocate(decl)
+        return self.resources[name]
 
-        tex.filter = (moderngl.LINEAR, moderngl.LINEAR) if filter_linear else (moderngl.NEAREST, moderngl.NEAREST)
-        tex.repeat_x = tex.repeat_y = False
-        self.resources[name] = tex
-        return tex
+    # -------------------------------------------------------------- history
+    def swap_history(self, name: str):
+        cur, prev = self.resources.get(name), self.resources.get(name + PREV)
+        if cur is None or prev is None:
+            return
+        self.resources[name], self.resources[name + PREV] = prev, cur
+        self.specs[name], self.specs[name + PREV] = self.specs[name + PREV], self.specs[name]
+        s_cur, s_prev = self.sync.pop(name, None), self.sync.pop(name + PREV, None)
+        if s_cur is not None:
+            self.sync[name + PREV] = s_cur
+        if s_prev is not None:
+            self.sync[name] = s_prev
 
+    def clear_resource(self, name: str, value=(0.0, 0.0, 0.0, 0.0)):
+        """Fill a texture or buffer with ``value`` (history reset)."""
+        obj = self.resources.get(name)
+        if obj is None:
+            return
+        decl = self.specs.get(name, (None,))[0]
+        kind = decl.kind if decl is not None else TEX2D
+        if kind == BUFFER:
+            obj.clear()
+            return
+        if kind == TEX2D and getattr(obj, "dtype", "f4").startswith("f"):
+            fbo = self._clear_fbos.get(id(obj))
+            if fbo is None:
+                fbo = self.ctx.framebuffer(color_attachments=[obj])
+                self._clear_fbos[id(obj)] = fbo
+            v = tuple(value) + (0.0,) * (4 - len(value))
+            fbo.clear(*v[:4])
+            return
+        if kind in (TEX2D, TEX2D_ARRAY, TEX3D):
+            comps = obj.components
+            dt = {"f1": np.uint8, "f2": np.float16, "f4": np.float32, "u4": np.uint32, "i4": np.int32}.get(
+                obj.dtype, np.float32)
+            shape = tuple(obj.size) + (comps,)
+            arr = np.empty(shape, dt)
+            arr[...] = np.asarray(tuple(value)[:comps] + (0,) * max(0, comps - len(value)), dt)
+            obj.write(arr.tobytes())
+
+    def _drop_clear_fbo(self, obj):
+        fbo = self._clear_fbos.pop(id(obj), None)
+        if fbo is not None:
+            fbo.release()
+
+    # -------------------------------------------------------------- raster helpers
+    def layered_framebuffer(self, color: list[str], depth: str | None = None):
+        """A framebuffer whose attachments are whole 2D arrays / 3D textures: a geometry
+        shader picks the layer with ``gl_Layer`` (cube maps, voxelisation, layered shadow maps)."""
+        res = self.resources
+        return self.ctx.framebuffer(color_attachments=[res[n] for n in color],
+                                    depth_attachment=res[depth] if depth else None)
+
+    def empty_framebuffer(self, size, layers: int = 0):
+        """A framebuffer with no attachments of ``size`` (rasterise to drive fragment-shader
+        imageStore, e.g. conservative voxelisation into a 3D image)."""
+        return self.ctx.empty_framebuffer(tuple(size), layers=layers)
+
+    # -------------------------------------------------------------- dispatch
     def dispatch(self, program, groups_x: int, groups_y: int = 1, groups_z: int = 1):
         program.run(max(1, groups_x), max(1, groups_y), max(1, groups_z))
 
     def groups(self, local: int = 8) -> tuple[int, int]:
         return (self.width + local - 1) // local, (self.height + local - 1) // local
+
+    def barrier_external(self, names, bits: int = TEXTURE_FETCH_BARRIER_BIT | TEXTURE_UPDATE_BARRIER_BIT
+                         | BUFFER_UPDATE_BARRIER_BIT | SHADER_IMAGE_ACCESS_BARRIER_BIT) -> int:
+        """Make incoherent writes to ``names`` visible to code outside the graph (the
+        session's accumulation, read-backs). Returns the bits issued (0 = none needed)."""
+        need = 0
+        for n in names:
+            st = self.sync.get(n)
+            if st is not None and st[1] in ("image", "storage") and st[2] & bits != bits:
+                need |= bits & ~st[2]
+                st[2] |= bits
+        if need:
+            self.ctx.memory_barrier(need)
+        return need
 
 
 @dataclass
@@ -198,8 +468,20 @@ class Plan:
     skipped: list[SkippedPass] = field(default_factory=list)
 
 
+def _base(name: str) -> str:
+    return name[: -len(PREV)] if name.endswith(PREV) else name
+
+
+def validate_enabled() -> bool:
+    return os.environ.get("GI_PREVIEW_VALIDATE", "") not in ("", "0", "false", "False")
+
+
+_NP_DT = {"f1": np.uint8, "f2": np.float16, "f4": np.float32, "u4": np.uint32, "i4": np.int32}
+
+
 class FrameGraph:
-    """An ordered list of passes, planned against the effects the scene calls for."""
+    """Passes planned against the effects the scene calls for, run in topological order with
+    the barriers and history the declarations imply."""
 
     def __init__(self, passes: list[Pass]):
         names = [p.name for p in passes]
@@ -208,6 +490,13 @@ class FrameGraph:
         self.passes = list(passes)
         self._plan: Plan | None = None
         self._compiled_size = None
+        self._compiled_rc = None
+        self.barrier_log: list[dict] = []  # this frame's barriers: before, resources, bits, names
+        self.history_log: list[dict] = []  # every history reset: pass, events, frame sample
+        self.validation_log: list[str] = []
+        self._decls: dict[str, Res] = {}
+        self._decl_owner: dict[str, str] = {}
+        self._collect_declarations()
 
     def __iter__(self):
         return iter(self.passes)
@@ -218,46 +507,293 @@ class FrameGraph:
                 return p
         raise KeyError(name)
 
+    def _collect_declarations(self):
+        decls, owner = {}, {}
+        for p in self.passes:
+            for d in p.resources():
+                if d.name not in p.writes:
+                    raise PlanError(f"pass '{p.name}' declares resource '{d.name}' but does not list it in writes")
+                old = decls.get(d.name)
+                if old is not None and (old.kind, old.components, old.dtype, old.history) != (
+                        d.kind, d.components, d.dtype, d.history):
+                    raise PlanError(f"resource '{d.name}' is declared differently by passes "
+                                    f"'{owner[d.name]}' and '{p.name}'")
+                if old is None:
+                    decls[d.name], owner[d.name] = d, p.name
+        self._decls, self._decl_owner = decls, owner
+
+    def declaration(self, name: str) -> Res | None:
+        return self._decls.get(_base(name))
+
     # ------------------------------------------------------------------ planning
+    def _writers(self, name: str, among=None) -> list[int]:
+        return [i for i, p in enumerate(self.passes) if name in p.writes and (among is None or among[i])]
+
     def plan(self, needed: set, reasons: dict[str, str] | None = None) -> Plan:
-        """Choose the passes to run: those that provide a needed effect or are ``always``,
-        plus (transitively) every earlier pass that writes a resource a chosen pass reads.
+        """Choose the passes to run: those that are ``always`` or provide a needed effect,
+        plus (transitively) the producers of what they read; order them topologically.
         ``reasons`` maps an effect to why the scene does not need it."""
         reasons = reasons or {}
+        n = len(self.passes)
         chosen = [p.always or bool(p.provides & needed) for p in self.passes]
-        # a kept pass pulls in the passes before it that write what it reads (producers run
-        # before consumers: a later pass writing the same resource is not a producer of it)
-        for i in range(len(self.passes) - 1, -1, -1):
-            if not chosen[i]:
-                continue
-            for j in range(i - 1, -1, -1):
-                if not chosen[j] and set(self.passes[i].reads).intersection(self.passes[j].writes):
-                    chosen[j] = True
-        active, skipped = [], []
+        # every read must have a producer in the graph (history reads: last frame's value)
+        for i, p in enumerate(self.passes):
+            for r in p.reads:
+                if r.endswith(PREV):
+                    d = self._decls.get(_base(r))
+                    if d is None or not d.history:
+                        raise PlanError(f"pass '{p.name}' reads '{r}', but '{_base(r)}' is not a history "
+                                        f"resource of any pass in the graph")
+                elif not self._writers(r):
+                    raise PlanError(f"pass '{p.name}' reads '{r}', which no pass in the graph writes")
+        changed = True
+        while changed:
+            changed = False
+            for i in range(n):
+                if not chosen[i]:
+                    continue
+                for r in self.passes[i].reads:
+                    if r.endswith(PREV):
+                        r = _base(r)
+                        for j in self._writers(r):
+                            if not chosen[j]:
+                                chosen[j] = changed = True
+                        continue
+                    before = [j for j in self._writers(r) if j < i]
+                    if before:
+                        if not any(chosen[j] for j in before):
+                            chosen[before[-1]] = changed = True
+                    else:
+                        for j in self._writers(r):
+                            if not chosen[j]:
+                                chosen[j] = changed = True
+        order = self._toposort(chosen)
+        skipped = []
         for p, c in zip(self.passes, chosen):
-            if c:
-                active.append(p)
-            else:
+            if not c:
                 why = "; ".join(reasons.get(e, f"scene does not need {e.value}") for e in
                                 sorted(p.provides, key=lambda e: e.value)) or "not needed"
                 skipped.append(SkippedPass(p.name, sorted(e.value for e in p.provides), why))
-        self._plan = Plan(active, skipped)
+        self._plan = Plan([self.passes[i] for i in order], skipped)
         return self._plan
 
-    # ------------------------------------------------------------------ running
+    def _toposort(self, chosen: list[bool]) -> list[int]:
+        """Kahn's algorithm over the active passes, ties broken by declaration order.
+
+        Edges: the producer of each read (the nearest earlier writer; if none is declared
+        earlier, every writer); writers of one resource in declaration order; a reader
+        before the next writer of what it read (write-after-read)."""
+        act = [i for i in range(len(self.passes)) if chosen[i]]
+        edges: dict[int, set] = {i: set() for i in act}
+        for i in act:
+            p = self.passes[i]
+            for r in tuple(p.reads) + tuple(p.optional_reads):
+                if r.endswith(PREV):
+                    continue
+                ws = self._writers(r, chosen)
+                before = [j for j in ws if j < i]
+                producers = [before[-1]] if before else [j for j in ws if j != i]
+                for j in producers:
+                    edges[j].add(i)
+                after = [j for j in ws if j > i]
+                if before and after and after[0] != i:
+                    edges[i].add(after[0])  # read the version before the next write
+        for r in {w for i in act for w in self.passes[i].writes}:
+            ws = self._writers(r, chosen)
+            for a, b in zip(ws, ws[1:]):
+                edges[a].add(b)
+        indeg = {i: 0 for i in act}
+        for a in act:
+            for b in edges[a]:
+                if b != a:
+                    indeg[b] += 1
+        ready = [i for i in act if indeg[i] == 0]
+        heapq.heapify(ready)
+        order = []
+        while ready:
+            a = heapq.heappop(ready)
+            order.append(a)
+            for b in sorted(edges[a]):
+                if b == a:
+                    continue
+                indeg[b] -= 1
+                if indeg[b] == 0:
+                    heapq.heappush(ready, b)
+        if len(order) != len(act):
+            stuck = [self.passes[i].name for i in act if i not in order]
+            raise PlanError(f"the passes {', '.join(repr(s) for s in stuck)} depend on each other in a cycle "
+                            f"(each reads what another writes)")
+        return order
+
+    @property
+    def order(self) -> list[str]:
+        return [p.name for p in self._plan.active] if self._plan else []
+
+    # ------------------------------------------------------------------ resources
+    def allocate(self, rc: RenderContext) -> bool:
+        """Allocate every declared resource of every pass for ``rc.size`` (idempotent)."""
+        changed = False
+        for p in self.passes:
+            for d in p.resources():
+                changed |= rc.allocate(d, p.props)
+        return changed
+
     def compile(self, rc: RenderContext, force: bool = False):
-        if force or self._compiled_size != rc.size:
+        """Allocate declared resources; (re)compile passes when the size, the context or an
+        allocation changed. Recompiling invalidates history."""
+        realloc = self.allocate(rc)
+        if force or realloc or self._compiled_size != rc.size or self._compiled_rc is not rc:
             for p in self.passes:
                 p.compile(rc)
                 p.reset_history()
+                for h in p.history:
+                    rc.clear_resource(h)
+                    rc.clear_resource(h + PREV)
             self._compiled_size = rc.size
+            self._compiled_rc = rc
+
+    # ------------------------------------------------------------------ history
+    def apply_history_events(self, rc: RenderContext, events: set) -> list[str]:
+        """Invalidate the history of every pass whose ``history_resets`` meets ``events``
+        (plus the passes whose parameters changed). Returns the names of reset passes."""
+        reset = []
+        for p in self.passes:
+            ev = set(events) & set(p.history_resets)
+            if p.params_changed and PARAM_CHANGE in p.history_resets:
+                ev.add(PARAM_CHANGE)
+            p.params_changed = False
+            if not ev:
+                continue
+            p.reset_history()
+            for h in p.history:
+                d = self._decls[h]
+                rc.clear_resource(h, d.clear)
+                rc.clear_resource(h + PREV, d.clear)
+            reset.append(p.name)
+            self.history_log.append({"pass": p.name, "events": sorted(ev)})
+        return reset
+
+    def reset_history(self, rc: RenderContext | None = None):
+        """Invalidate every pass's history (a camera cut for all)."""
+        for p in self.passes:
+            p.reset_history()
+            p.params_changed = False
+            if rc is not None:
+                for h in p.history:
+                    d = self._decls[h]
+                    rc.clear_resource(h, d.clear)
+                    rc.clear_resource(h + PREV, d.clear)
+
+    def warmup_frames(self) -> int:
+        if self._plan is None:
+            return 0
+        return max((int(p.warmup_frames) for p in self._plan.active), default=0)
+
+    def converged(self, rc) -> bool | None:
+        """True when every active pass that measures convergence says so (None: nobody measures)."""
+        votes = [p.converged(rc) for p in self._plan.active] if self._plan else []
+        votes = [v for v in votes if v is not None]
+        return all(votes) if votes else None
+
+    # ------------------------------------------------------------------ running
+    def _barrier_before(self, rc: RenderContext, p: Pass) -> int:
+        """Bits to issue before ``p`` so that it sees every incoherent write it depends on."""
+        bits, why = 0, []
+        for r in tuple(p.reads) + tuple(p.optional_reads):
+            if r not in rc.resources:
+                continue
+            st = rc.sync.get(r)
+            if st is None or st[1] not in ("image", "storage"):
+                continue
+            d = self.declaration(r) or rc.specs.get(r, (None,))[0]
+            need = BUFFER_READ_BITS if (d is not None and d.kind == BUFFER) else TEXTURE_READ_BITS
+            if p.kind == "raster" and not (d is not None and d.kind == BUFFER):
+                need |= FRAMEBUFFER_BARRIER_BIT
+            missing = need & ~st[2]
+            if missing:
+                bits |= missing
+                st[2] |= missing
+                why.append(r)
+        for w in p.writes:
+            d = self.declaration(w) or rc.specs.get(w, (None,))[0]
+            acc = p.access(w, d)
+            st = rc.sync.get(w)
+            if st is None or acc == "host":
+                continue  # first write of a fresh resource, or a CPU-side object
+            is_buf = d is not None and d.kind == BUFFER
+            if acc in ("image", "storage"):
+                # an incoherent write after earlier writes or reads of the resource (WAW, WAR)
+                bits |= SHADER_STORAGE_BARRIER_BIT if is_buf else SHADER_IMAGE_ACCESS_BARRIER_BIT
+                why.append(w)
+            elif st[1] in ("image", "storage"):
+                # rendering into (or uploading to) what a shader stored into
+                bits |= FRAMEBUFFER_BARRIER_BIT if acc == "framebuffer" else (
+                    BUFFER_UPDATE_BARRIER_BIT if is_buf else TEXTURE_UPDATE_BARRIER_BIT)
+                why.append(w)
+        if bits:
+            rc.ctx.memory_barrier(bits)
+            self.barrier_log.append({"before": p.name, "resources": sorted(set(why)), "bits": bits,
+                                     "names": barrier_names(bits)})
+        return bits
+
+    def _after(self, rc: RenderContext, p: Pass):
+        for w in p.writes:
+            d = self.declaration(w) or rc.specs.get(w, (None,))[0]
+            rc.sync[w] = [p.name, p.access(w, d), 0]
+
+    def _validate(self, rc: RenderContext, p: Pass):
+        for w in p.writes:
+            d = self.declaration(w) or rc.specs.get(w, (None,))[0]
+            check = d.check if d is not None else "finite"
+            obj = rc.resources.get(w)
+            if check == "none" or obj is None:
+                continue
+            kind = d.kind if d is not None else TEX2D
+            if kind in (HOST, DEPTH):
+                continue
+            rc.barrier_external([w])
+            if kind == BUFFER:
+                if d is None or d.dtype not in ("f4",):
+                    continue
+                arr = np.frombuffer(obj.read(), np.float32)
+                where = lambda i: f"element {i}"  # noqa: E731
+            else:
+                dt = _NP_DT.get(getattr(obj, "dtype", "f4"), np.float32)
+                if dt not in (np.float16, np.float32):
+                    continue
+                arr = np.frombuffer(obj.read(), dt).astype(np.float32)
+                size = tuple(obj.size)
+                comps = obj.components
+
+                def where(i, size=size, comps=comps):
+                    texel = i // comps
+                    coords = np.unravel_index(texel, tuple(reversed(size)))
+                    return f"texel {tuple(int(c) for c in reversed(coords))} channel {i % comps}"
+            bad = ~np.isfinite(arr)
+            what = "NaN/Inf"
+            if not bad.any() and check == "radiance":
+                bad = arr < -1e-6
+                what = "a negative value"
+            if bad.any():
+                i = int(np.argmax(bad))
+                msg = (f"GI_PREVIEW_VALIDATE: pass '{p.name}' wrote {what} ({arr[i]!r}) into '{w}' at "
+                       f"{where(i)}")
+                self.validation_log.append(msg)
+                raise ValidationError(msg)
 
     def execute(self, rc: RenderContext, frame: FrameState, *, timers: bool = True) -> dict[str, float]:
-        """Run the planned passes; returns GPU milliseconds per pass (timer queries)."""
+        """Run the planned passes in order with barriers; returns GPU ms per pass."""
         if self._plan is None:
             raise RuntimeError("FrameGraph.execute before plan()")
+        self.allocate(rc)
+        for p in self._plan.active:  # history: last frame's writes become @prev
+            for h in p.history:
+                rc.swap_history(h)
+        self.barrier_log = []
+        validate = validate_enabled()
         times: dict[str, float] = {}
         for p in self._plan.active:
+            self._barrier_before(rc, p)
             if timers:
                 q = rc.ctx.query(time=True)
                 with q:
@@ -267,11 +803,12 @@ class FrameGraph:
                 t0 = time.perf_counter()
                 p.execute(rc, frame)
                 times[p.name] = (time.perf_counter() - t0) * 1e3
+            self._after(rc, p)
+            if p.history:
+                p.history_valid = True
+            if validate:
+                self._validate(rc, p)
         return times
-
-    def reset_history(self):
-        for p in self.passes:
-            p.reset_history()
 
     def get_properties(self) -> dict:
         return {p.name: p.get_properties() for p in self.passes}

@@ -225,6 +225,7 @@ class GPUScene:
         self.matrices: dict[str, np.ndarray] = {}
         self._fp = {}
         self.version = 0  # bumps on any change (history invalidation)
+        self.setup_ms = 0.0  # one-time work (BVH builds, uploads) done for this scene so far, in ms
 
     # ------------------------------------------------------------------ upload
     def update(self, scene: SceneData) -> dict:

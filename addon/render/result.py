@@ -26,7 +26,8 @@ class RenderResult:
     aovs: render-pass name -> (H, W, C) float32, same orientation ("Depth", "Normal",
           "DiffCol", "Emit", and one per effect a technique provides, e.g. "GI_AO").
     pass_ms: per pass, GPU time of the last frame in milliseconds (timer queries).
-    frame_ms: median wall time of one frame (all passes, synchronised) in milliseconds.
+    frame_ms: median wall time of one frame (all passes, synchronised) in milliseconds,
+              without one-time setup (shader compiles, BVH builds) that happened in a frame.
     """
 
     image: np.ndarray
@@ -41,6 +42,10 @@ class RenderResult:
     skipped_passes: list[SkippedPass] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
     cancelled: bool = False
+    setup_ms: float = 0.0  # one-time work of this call: upload, BVH, allocation, shader compiles
+    warmup_frames: int = 0  # frames run (not accumulated) for the technique's state to converge
+    history_resets: list[str] = field(default_factory=list)  # passes whose history this call reset
+    pass_order: list[str] = field(default_factory=list)  # the planned passes in execution order
 
     @property
     def width(self) -> int:

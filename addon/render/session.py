@@ -19,7 +19,8 @@ import numpy as np
 
 from . import techniques
 from .analysis import analyse
-from .framegraph import FrameState, RenderContext
+from . import framegraph
+from .framegraph import CAMERA_CUT, SCENE_EDITS, FrameState, RenderContext
 from .gl import get_gl
 from .gpu_scene import GPUScene, set_uniform
 from .result import RenderResult, SkippedPass
@@ -77,13 +78,18 @@ class Session:
             self.graphs[key] = (tech, tech.build(quality))
         return self.graphs[key]
 
-    def _accumulate(self, name: str, tex, weight: float):
+    def _accumulate(self, name: str, res_name: str, weight: float):
+        """acc[name] += (resource - acc) * weight (running mean) on the GPU; the graph's
+        barrier state makes the pass's image stores visible to this texture fetch."""
+        tex = self.rc.resources[res_name]
         acc = self.acc.get(name)
         if acc is None or acc.size != tex.size:
             if acc is not None:
                 acc.release()
             acc = self.ctx.texture(tex.size, 4, dtype="f4")
             self.acc[name] = acc
+        self.rc.barrier_external([res_name, "acc:" + name],
+                                 framegraph.TEXTURE_FETCH_BARRIER_BIT | framegraph.SHADER_IMAGE_ACCESS_BARRIER_BIT)
         prog = self.programs.compute("common/accumulate.comp")
         acc.bind_to_image(0, read=True, write=True)
         tex.use(0)
@@ -91,6 +97,8 @@ class Session:
         set_uniform(prog, "u_weight", float(weight))
         w, h = tex.size
         prog.run((w + 7) // 8, (h + 7) // 8, 1)
+        # the accumulator was stored into: visible to the next accumulation and the read-back
+        self.rc.sync["acc:" + name] = ["accumulate", "image", 0]
 
     @staticmethod
     def _read(tex, components=4) -> np.ndarray:
@@ -100,11 +108,31 @@ class Session:
         return arr.astype(np.float32)
 
     # -------------------------------------------------------------- render
-    def render(self, scene: SceneData, technique: str, quality: int, samples: int, *,
-               cancel: threading.Event | None = None, progress=None,
-               continue_accumulation: bool = False, keep_history: bool = False) -> RenderResult:
+    def render(self, scene: SceneData, technique: str, quality: int, samples: int, **kw) -> RenderResult:
+        """Run :meth:`render_steps` to the end (blocking, on the GL thread)."""
+        steps = self.render_steps(scene, technique, quality, samples, **kw)
+        while True:
+            try:
+                next(steps)
+            except StopIteration as stop:
+                return stop.value
+
+    def render_steps(self, scene: SceneData, technique: str, quality: int, samples: int, *,
+                     cancel: threading.Event | None = None, progress=None,
+                     continue_accumulation: bool = False, keep_history: bool = False,
+                     camera_cut: bool | None = None, warmup: bool | None = None):
+        """Render ``samples`` accumulated frames as a generator: it yields after every frame
+        (warm-up frames included) so the GL thread can serve other sessions in between, and
+        returns the RenderResult (``StopIteration.value``).
+
+        keep_history: temporal state survives from the previous call (viewport, animation);
+        otherwise this render starts with a camera cut. Scene edits since the last call
+        (lights, materials, geometry, transforms, textures) reset the history of the passes
+        that declare them. warmup: run the graph's warm-up frames before accumulating (default:
+        when the history was just reset and the accumulation starts fresh, i.e. F12)."""
         validate_scene(scene)
         t_start = time.perf_counter()
+        setup0 = self._setup_clock()
         analysis = analyse(scene)
         tech, graph = self._graph(technique, quality)
         changes = self.gpu_scene.update(scene)
@@ -115,7 +143,8 @@ class Session:
             self.rc.size = size
         # the session's resources are shared by its graphs: a graph compiled earlier may find
         # them reallocated (another size) by another graph since, so switching graphs recompiles
-        graph.compile(self.rc, force=graph is not self._last_graph)
+        switched = graph is not self._last_graph
+        graph.compile(self.rc, force=switched)
         self._last_graph = graph
         plan = graph.plan(analysis.needed, analysis.reasons)
         cam = scene.camera
@@ -123,50 +152,80 @@ class Session:
         proj = cam.projection.astype(np.float64)
         vp = proj @ view
         acc_key = (technique, quality, size, self.gpu_scene.version, vp.astype(np.float32).tobytes())
-        if not (continue_accumulation and acc_key == self.acc_key):
+        fresh = not (continue_accumulation and acc_key == self.acc_key)
+        if fresh:
             self.acc_count = 0
-        scene_changed = any(changes.values())
-        if not keep_history or scene_changed:
-            if not keep_history:
-                graph.reset_history()
+        edits = {k for k, v in changes.items() if v and k in SCENE_EDITS}
+        cut = (not keep_history or switched) if camera_cut is None else bool(camera_cut)
+        events = set(edits) | ({CAMERA_CUT} if cut else set())
+        reset = graph.apply_history_events(self.rc, events)
+        if cut:
+            self.prev_view_proj = None
         self.acc_key = acc_key
         # only what a pass that runs this frame writes (a skipped pass's old image is stale)
         written = {w for p in plan.active for w in p.writes}
         outputs = {aov: r for aov, r in {"Combined": "color", **tech.outputs}.items() if r in written}
+        n_warm = 0
+        if warmup if warmup is not None else (fresh and cut):
+            n_warm = max(int(getattr(tech, "warmup_frames", 0) or 0), graph.warmup_frames())
+        setup_ms = (time.perf_counter() - t_start) * 1e3
         frame_times, pass_ms = [], {}
         samples = max(1, int(samples))
-        for i in range(samples):
+        total = n_warm + samples
+        warm_done = 0
+        first_frame = True
+        for i in range(total):
             if cancel is not None and cancel.is_set():
                 if self.acc_count == 0:
                     raise Cancelled()
                 break
+            is_warm = warm_done < n_warm
             k = self.acc_count
-            jx, jy = _r2(k)
+            jx, jy = _r2(self.sample_counter if is_warm else k)
             jit = np.eye(4)
             jit[0, 3] = 2.0 * jx / size[0]
             jit[1, 3] = 2.0 * jy / size[1]
             # seeds: the accumulation index for a fresh render (deterministic F12), the running
-            # counter when history is kept (viewport, animation: new noise every frame)
-            seed = self.sample_counter if keep_history else k
+            # counter when history is kept (viewport, animation: new noise every frame);
+            # warm-up frames use seeds no accumulated frame uses
+            seed = self.sample_counter if keep_history else (k if not is_warm else (1 << 30) + warm_done)
             frame = FrameState(index=k, sample=seed, jitter=(jx, jy), view=view.astype(np.float32),
                                proj=(jit @ proj).astype(np.float32), proj_unjittered=proj.astype(np.float32),
                                prev_view_proj=(self.prev_view_proj if self.prev_view_proj is not None else vp
                                                ).astype(np.float32),
-                               camera_changed=k == 0, scene_changed=scene_changed and i == 0,
-                               seed=seed)
+                               camera_changed=self.prev_view_proj is None or not np.allclose(vp, self.prev_view_proj),
+                               camera_cut=cut and first_frame, scene_changed=bool(edits) and first_frame,
+                               scene_edits=frozenset(edits) if first_frame else frozenset(),
+                               seed=seed, warmup=is_warm)
             t0 = time.perf_counter()
+            setup_f0 = self._setup_clock()
             pass_ms = graph.execute(self.rc, frame, timers=True)
-            w = 1.0 / (k + 1)
-            for aov, res_name in outputs.items():
-                if res_name in self.rc.resources:
-                    self._accumulate(aov, self.rc.resources[res_name], w)
+            if not is_warm:
+                w = 1.0 / (k + 1)
+                for aov, res_name in outputs.items():
+                    if res_name in self.rc.resources:
+                        self._accumulate(aov, res_name, w)
             self.ctx.finish()
-            frame_times.append((time.perf_counter() - t0) * 1e3)
+            # one-time work done inside this frame (shader compiles, BVH builds) is setup
+            in_frame_setup = self._setup_clock() - setup_f0
+            setup_ms += in_frame_setup
+            dt = (time.perf_counter() - t0) * 1e3 - in_frame_setup
             self.prev_view_proj = vp
-            self.acc_count += 1
             self.sample_counter += 1
+            first_frame = False
+            if is_warm:
+                warm_done += 1
+                if graph.converged(self.rc):
+                    n_warm = warm_done  # measured: state settled early
+            else:
+                frame_times.append(dt)
+                self.acc_count += 1
             if progress is not None:
-                progress((i + 1) / samples)
+                progress((i + 1) / max(n_warm + samples, 1))
+            yield (i + 1) / max(n_warm + samples, 1)
+        if self.acc_count == 0:
+            raise Cancelled()
+        self.rc.barrier_external(list(self.acc_keys()))
         image = self._read(self.acc["Combined"])
         image[..., 3] = 1.0
         aovs = {}
@@ -174,6 +233,7 @@ class Session:
             if aov != "Combined" and aov in self.acc:
                 aovs[aov] = self._read(self.acc[aov], 3)
         if "gbuffer.position" in written:  # a graph without a G-buffer (PT) has none this frame
+            self.rc.barrier_external(["gbuffer.position", "gbuffer.normal", "gbuffer.albedo", "gbuffer.geonormal"])
             aovs.update(self._gbuffer_aovs(scene))
         effects = sorted({e.value for p in plan.active for e in p.provides} & {e.value for e in analysis.needed})
         warnings = list(scene.warnings)
@@ -182,7 +242,17 @@ class Session:
             pass_ms=pass_ms, frame_ms=float(statistics.median(frame_times)) if frame_times else 0.0,
             total_ms=(time.perf_counter() - t_start) * 1e3, effects=effects,
             skipped_passes=list(plan.skipped), warnings=warnings,
-            cancelled=bool(cancel is not None and cancel.is_set()))
+            cancelled=bool(cancel is not None and cancel.is_set()),
+            setup_ms=float(setup_ms), warmup_frames=int(warm_done), history_resets=list(reset),
+            pass_order=graph.order)
+
+    def _setup_clock(self) -> float:
+        """Milliseconds of one-time work done so far: shader compiles and scene setup
+        (BVH builds and uploads add to ``gpu_scene.setup_ms``)."""
+        return float(self.programs.compile_ms) + float(getattr(self.gpu_scene, "setup_ms", 0.0))
+
+    def acc_keys(self):
+        return ["acc:" + k for k in self.acc]
 
     def _gbuffer_aovs(self, scene: SceneData) -> dict:
         """Depth (distance along the view axis), Normal (world) and DiffCol from the last G-buffer."""
@@ -238,13 +308,13 @@ def available_techniques():
 
 def render(scene: SceneData, technique: str = "DIRECT", quality: int = 1, samples: int = 1, *,
            progress=None, cancel=None, continue_accumulation: bool = False, keep_history: bool = False,
-           session: str = "final", poll_s: float = 0.05) -> RenderResult:
+           session: str = "final", poll_s: float = 0.05, **options) -> RenderResult:
     """Render ``scene`` with a technique; blocks until done. Callable from any thread.
 
     progress: ``f(fraction)`` called on the calling thread. cancel: a ``threading.Event``
     or a callable returning True to stop; checked between frames (a cancelled render returns
     what has accumulated, with ``cancelled=True``; cancelled before the first frame raises
-    ``Cancelled``).
+    ``Cancelled``). options: passed to :meth:`Session.render_steps` (``camera_cut``, ``warmup``).
     """
     techniques.get(technique)  # unknown ids fail here, on the caller's thread
     gl = get_gl()
@@ -255,7 +325,7 @@ def render(scene: SceneData, technique: str = "DIRECT", quality: int = 1, sample
         sess = _get_session(session)
         return sess.render(scene, technique, int(quality), int(samples), cancel=stop,
                            progress=prog_q.put if progress else None,
-                           continue_accumulation=continue_accumulation, keep_history=keep_history)
+                           continue_accumulation=continue_accumulation, keep_history=keep_history, **options)
 
     fut = gl.submit(job)
     while True:

@@ -11,6 +11,7 @@ the shader. Composition needs no GPU, so tests check it everywhere.
 from __future__ import annotations
 
 import re
+import time
 from pathlib import Path
 
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
@@ -121,6 +122,7 @@ class ProgramCache:
         self.ctx = ctx
         self.lib = lib or library()
         self._programs: dict = {}
+        self.compile_ms = 0.0  # total time spent composing and compiling (one-time setup)
 
     @staticmethod
     def _key(stages: dict, defines: dict | None):
@@ -130,27 +132,37 @@ class ProgramCache:
         key = self._key({"comp": rel}, defines)
         prog = self._programs.get(key)
         if prog is None:
+            t0 = time.perf_counter()
             src = self.lib.compose(rel, defines)
             try:
                 prog = self.ctx.compute_shader(src.text)
             except Exception as exc:
                 raise ShaderError(f"compiling {rel}: {src.explain(str(exc))}") from None
             self._programs[key] = prog
+            self.compile_ms += (time.perf_counter() - t0) * 1e3
         return prog
 
-    def program(self, vertex: str, fragment: str | None = None, defines: dict | None = None):
-        key = self._key({"vert": vertex, "frag": fragment or ""}, defines)
+    def program(self, vertex: str, fragment: str | None = None, defines: dict | None = None,
+                geometry: str | None = None):
+        """A raster program; ``geometry`` adds a geometry stage (layered rendering with
+        ``gl_Layer``: cube maps, voxelisation)."""
+        key = self._key({"vert": vertex, "frag": fragment or "", "geom": geometry or ""}, defines)
         prog = self._programs.get(key)
         if prog is None:
+            t0 = time.perf_counter()
             vs = self.lib.compose(vertex, defines)
             fs = self.lib.compose(fragment, defines) if fragment else None
+            gs = self.lib.compose(geometry, defines) if geometry else None
             try:
-                prog = self.ctx.program(vertex_shader=vs.text, fragment_shader=fs.text if fs else None)
+                prog = self.ctx.program(vertex_shader=vs.text, fragment_shader=fs.text if fs else None,
+                                        geometry_shader=gs.text if gs else None)
             except Exception as exc:
                 msg = str(exc)
-                where = fs if fs is not None and "fragment" in msg.lower() else vs
-                raise ShaderError(f"compiling {vertex} + {fragment}: {where.explain(msg)}") from None
+                low = msg.lower()
+                where = fs if fs is not None and "fragment" in low else gs if gs is not None and "geometry" in low else vs
+                raise ShaderError(f"compiling {vertex} + {geometry or ''} + {fragment}: {where.explain(msg)}") from None
             self._programs[key] = prog
+            self.compile_ms += (time.perf_counter() - t0) * 1e3
         return prog
 
     def release(self):

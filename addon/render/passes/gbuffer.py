@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..framegraph import Pass
+from ..framegraph import DEPTH as DEPTH_KIND
+from ..framegraph import Pass, Res
 from ..gpu_scene import set_uniform
 
 ALBEDO, NORMAL, POSITION, GEONORMAL, MOTION, DEPTH = (
@@ -18,20 +19,15 @@ ALBEDO, NORMAL, POSITION, GEONORMAL, MOTION, DEPTH = (
 
 class GBufferPass(Pass):
     name = "gbuffer"
+    kind = "raster"
     always = True
     writes = (ALBEDO, NORMAL, POSITION, GEONORMAL, MOTION, DEPTH)
+    declared = (Res(ALBEDO, components=4, dtype="f2"), Res(NORMAL, components=4, dtype="f2"),
+                Res(POSITION, components=4, dtype="f4"), Res(GEONORMAL, components=4, dtype="f2"),
+                Res(MOTION, components=4, dtype="f2"), Res(DEPTH, kind=DEPTH_KIND, check="none"))
+    history_resets = frozenset()  # no state across frames
 
     def compile(self, rc):
-        size = rc.size
-        rc.texture(ALBEDO, 4, "f2")
-        rc.texture(NORMAL, 4, "f2")
-        rc.texture(POSITION, 4, "f4")
-        rc.texture(GEONORMAL, 4, "f2")
-        rc.texture(MOTION, 4, "f2")
-        old = rc.resources.get(DEPTH)
-        if old is not None:
-            old.release()
-        rc.resources[DEPTH] = rc.ctx.depth_texture(size)
         if getattr(self, "fbo", None) is not None:
             self.fbo.release()
         self.fbo = rc.ctx.framebuffer(

@@ -5,8 +5,9 @@
   buffers; ``scale`` runs a pass at a fraction of the resolution.
 * ``HiZPass``: min device-depth pyramid (``ss.hiz``) for Hi-Z ray marching.
 * ``TemporalPass``: reprojection with ``gbuffer.motion``, disocclusion rejection by plane
-  distance and normal, running mean capped at ``max_history``; state in pass-owned
-  ping-pong textures, dropped by ``reset_history()``.
+  distance and normal, running mean capped at ``max_history``; its state (signal, position,
+  normal) is history resources the graph double-buffers and clears on the events the
+  pass declares.
 * ``BilateralPass``: depth/normal-aware blur whose spatial extent shrinks with the
   temporal history length.
 * ``AmbientStatsPass``: screen means (direct-lit radiance, diffuse albedo, enclosure) for
@@ -22,7 +23,8 @@ import math
 
 import numpy as np
 
-from ..framegraph import Param, Pass
+from ..framegraph import (ALL_EVENTS, CAMERA_CUT, PARAM_CHANGE, PREV, SHADER_IMAGE_ACCESS_BARRIER_BIT,
+                          TEXTURE_FETCH_BARRIER_BIT, TEXTURE_UPDATE_BARRIER_BIT, Param, Pass, Res)
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, GEONORMAL, MOTION, NORMAL, POSITION
 
@@ -103,10 +105,11 @@ class ScreenPass(Pass):
 
     @staticmethod
     def run(rc, prog, size=None):
-        """Dispatch over ``size`` (default: the frame) and make the writes visible."""
+        """Dispatch over ``size`` (default: the frame). The graph issues the barriers
+        between this pass and the next; a pass whose own dispatches depend on each other
+        calls ``rc.ctx.memory_barrier`` between them."""
         gx, gy = ScreenPass.groups(size or rc.size)
         rc.dispatch(prog, gx, gy)
-        rc.ctx.memory_barrier()
 
 
 # ---------------------------------------------------------------- Hi-Z
@@ -116,93 +119,69 @@ class HiZPass(ScreenPass):
     name = "ss_hiz"
     reads = (POSITION,)
     writes = (HIZ,)
-
-    def __init__(self, quality=None, **kw):
-        super().__init__(quality, **kw)
-        self.tex = None
+    declared = (Res(HIZ, components=1, dtype="f4", levels=0),)
+    history_resets = frozenset()
 
     def compile(self, rc):
-        import moderngl
-
-        if self.tex is not None:
-            self.tex.release()
         w, h = rc.size
         self.levels = int(math.floor(math.log2(max(w, h)))) + 1
-        self.tex = rc.ctx.texture((w, h), 1, dtype="f4")
-        self.tex.build_mipmaps(0, self.levels - 1)  # allocates every level
-        self.tex.filter = (moderngl.NEAREST_MIPMAP_NEAREST, moderngl.NEAREST)
-        self.tex.repeat_x = self.tex.repeat_y = False
-        rc.resources[HIZ] = self.tex
 
     def execute(self, rc, frame):
-        rc.resources[HIZ] = self.tex
+        tex = rc.resources[HIZ]
         init = rc.programs.compute("screen_space/hiz.comp", {"HIZ_INIT": 1})
         bind_frame(rc, init, frame)
         rc.resources[POSITION].use(1)
         set_uniform(init, "u_gb_position", 1)
-        self.tex.bind_to_image(1, read=False, write=True, level=0)
+        tex.bind_to_image(1, read=False, write=True, level=0)
         self.run(rc, init)
         red = rc.programs.compute("screen_space/hiz.comp")
         w, h = rc.size
         for lv in range(1, self.levels):
             lw, lh = max(1, w >> lv), max(1, h >> lv)
-            self.tex.bind_to_image(0, read=True, write=False, level=lv - 1)
-            self.tex.bind_to_image(1, read=False, write=True, level=lv)
+            rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT)  # level lv-1 stored by the last dispatch
+            tex.bind_to_image(0, read=True, write=False, level=lv - 1)
+            tex.bind_to_image(1, read=False, write=True, level=lv)
             self.run(rc, red, (lw, lh))
-
-    def release(self):
-        if self.tex is not None:
-            self.tex.release()
-            self.tex = None
 
 
 # ---------------------------------------------------------------- temporal
 class TemporalPass(ScreenPass):
-    """Shared temporal accumulation: ``source`` (any resolution) -> ``output`` (full)."""
+    """Shared temporal accumulation: ``source`` (any resolution) -> ``output`` (full).
+
+    History (double-buffered by the graph): ``output`` (the running mean), ``output.pos``
+    (world position, w = history length) and ``output.nrm``, read back as ``@prev``.
+    ``resets``: the events that invalidate it (default: all; an AO signal, which does not
+    depend on lights or materials, keeps its history across light and material edits)."""
 
     params = (
         Param("max_history", 32, 1, 1024, "frames averaged at most while the camera is still"),
         Param("max_history_moving", 8, 1, 1024, "frames averaged at most while the camera moves"),
     )
 
-    def __init__(self, quality=None, *, source: str, output: str, background=(1.0, 1.0, 1.0, 1.0), **kw):
+    def __init__(self, quality=None, *, source: str, output: str, background=(1.0, 1.0, 1.0, 1.0),
+                 resets=ALL_EVENTS, **kw):
         super().__init__(quality, **kw)
         self.source, self.output = source, output
         self.len_name = output + ".len"
-        self.reads = (source, POSITION, NORMAL, MOTION)
-        self.writes = (output, self.len_name)
-        self.history = (output,)
+        self.pos_name, self.nrm_name = output + ".pos", output + ".nrm"
+        self.reads = (source, POSITION, NORMAL, MOTION, output + PREV, self.pos_name + PREV, self.nrm_name + PREV)
+        self.writes = (output, self.len_name, self.pos_name, self.nrm_name)
+        self.declared = (Res(output, history=True, check="radiance"), Res(self.pos_name, history=True),
+                         Res(self.nrm_name, dtype="f2", history=True),
+                         Res(self.len_name, components=1, check="radiance"))
+        self.history_resets = frozenset(resets)
         self.background = tuple(float(x) for x in background)
-        self.hist = None
-        self.cur = 0
         self.prev_vp = None
 
-    def compile(self, rc):
-        self.release()
-        size = rc.size
-        self.hist = [{"out": rc.ctx.texture(size, 4, dtype="f4"), "pos": rc.ctx.texture(size, 4, dtype="f4"),
-                      "nrm": rc.ctx.texture(size, 4, dtype="f2")} for _ in range(2)]
-        for d in self.hist:
-            for t in d.values():
-                import moderngl
-
-                t.filter = (moderngl.NEAREST, moderngl.NEAREST)
-                t.repeat_x = t.repeat_y = False
-        rc.texture(self.len_name, 1, "f4")
-        self.history_valid = False
-
     def execute(self, rc, frame):
-        if self.hist is None or self.hist[0]["out"].size != rc.size:
-            self.compile(rc)
         prog = rc.programs.compute("screen_space/temporal.comp")
         bind_frame(rc, prog, frame)
-        prev, cur = self.hist[self.cur], self.hist[1 - self.cur]
         units = Units(1)
         res = rc.resources
         units.tex(prog, "u_current", res[self.source])
-        units.tex(prog, "u_hist", prev["out"])
-        units.tex(prog, "u_hist_pos", prev["pos"])
-        units.tex(prog, "u_hist_nrm", prev["nrm"])
+        units.tex(prog, "u_hist", res[self.output + PREV])
+        units.tex(prog, "u_hist_pos", res[self.pos_name + PREV])
+        units.tex(prog, "u_hist_nrm", res[self.nrm_name + PREV])
         bind_gbuffer(rc, prog, units)
         vp = (np.asarray(frame.proj_unjittered if frame.proj_unjittered is not None else frame.proj, np.float64)
               @ np.asarray(frame.view, np.float64))
@@ -211,24 +190,15 @@ class TemporalPass(ScreenPass):
         set_uniform(prog, "u_reset", 0 if self.history_valid else 1)
         set_uniform(prog, "u_max_history", float(self["max_history_moving"] if moving else self["max_history"]))
         set_uniform(prog, "u_background", self.background)
-        cur["out"].bind_to_image(0, read=False, write=True)
+        res[self.output].bind_to_image(0, read=False, write=True)
         res[self.len_name].bind_to_image(1, read=False, write=True)
-        cur["pos"].bind_to_image(2, read=False, write=True)
-        cur["nrm"].bind_to_image(3, read=False, write=True)
+        res[self.pos_name].bind_to_image(2, read=False, write=True)
+        res[self.nrm_name].bind_to_image(3, read=False, write=True)
         self.run(rc, prog)
-        res[self.output] = cur["out"]
-        self.cur = 1 - self.cur
-        self.history_valid = True
 
     def reset_history(self):
         super().reset_history()
         self.prev_vp = None
-
-    def release(self):
-        for d in self.hist or ():
-            for t in d.values():
-                t.release()
-        self.hist = None
 
 
 # ---------------------------------------------------------------- bilateral blur
@@ -244,9 +214,8 @@ class BilateralPass(ScreenPass):
         self.source, self.output, self.length = source, output, length
         self.reads = (source, length, POSITION, NORMAL)
         self.writes = (output,)
-
-    def compile(self, rc):
-        rc.texture(self.output, 4, "f4")
+        self.declared = (Res(output, check="radiance"),)
+        self.history_resets = frozenset()
 
     def execute(self, rc, frame):
         prog = rc.programs.compute("screen_space/bilateral.comp")
@@ -259,7 +228,7 @@ class BilateralPass(ScreenPass):
         set_uniform(prog, "u_radius_px", int(self["blur_radius"]))
         set_uniform(prog, "u_normal_power", float(self["normal_power"]))
         set_uniform(prog, "u_depth_sigma", float(self["depth_sigma"]))
-        rc.texture(self.output, 4, "f4").bind_to_image(0, read=False, write=True)
+        res[self.output].bind_to_image(0, read=False, write=True)
         self.run(rc, prog)
 
 
@@ -277,35 +246,24 @@ class AmbientStatsPass(ScreenPass):
         self.ao = ao
         self.reads = (ao, DIRECT_RADIANCE, ALBEDO, NORMAL, POSITION)
         self.writes = (STATS0, STATS1)
-        self.tex = None
-
-    def compile(self, rc):
-        self.release()
-        self.tex = [rc.ctx.texture(rc.size, 4, dtype="f4") for _ in range(2)]
-        for t in self.tex:
-            t.build_mipmaps()
-        self.lod = float(int(math.floor(math.log2(max(rc.size)))))
+        self.declared = (Res(STATS0, levels=0, check="radiance"), Res(STATS1, levels=0, check="radiance"))
+        self.history_resets = frozenset()
 
     def execute(self, rc, frame):
-        if self.tex is None or self.tex[0].size != rc.size:
-            self.compile(rc)
         prog = self.program(rc, "screen_space/stats.comp")
         bind_frame(rc, prog, frame)
         units = Units(1)
         units.tex(prog, "u_radiance", rc.resources[DIRECT_RADIANCE])
         units.tex(prog, "u_ao", rc.resources[self.ao])
         bind_gbuffer(rc, prog, units)
-        self.tex[0].bind_to_image(0, read=False, write=True)
-        self.tex[1].bind_to_image(1, read=False, write=True)
+        tex = (rc.resources[STATS0], rc.resources[STATS1])
+        tex[0].bind_to_image(0, read=False, write=True)
+        tex[1].bind_to_image(1, read=False, write=True)
         self.run(rc, prog)
-        for t in self.tex:
+        # the mip reduction reads level 0, which the dispatch stored into
+        rc.ctx.memory_barrier(TEXTURE_FETCH_BARRIER_BIT | TEXTURE_UPDATE_BARRIER_BIT | SHADER_IMAGE_ACCESS_BARRIER_BIT)
+        for t in tex:
             t.build_mipmaps()
-        rc.resources[STATS0], rc.resources[STATS1] = self.tex
-
-    def release(self):
-        for t in self.tex or ():
-            t.release()
-        self.tex = None
 
 
 # ---------------------------------------------------------------- composite
@@ -327,11 +285,9 @@ class CompositePass(ScreenPass):
         self.reads = tuple(reads)
         self.effect_output = f"{self.name}.effect"  # what this pass adds: the effect's render pass
         self.writes = (COLOR, self.effect_output) + ((ao_output,) if ao_output else ())
-
-    def compile(self, rc):
-        if self.ao_output:
-            rc.texture(self.ao_output, 4, "f4")
-        rc.texture(self.effect_output, 4, "f4")
+        self.declared = (Res(self.effect_output, check="radiance"),) + (
+            (Res(ao_output, check="radiance"),) if ao_output else ())
+        self.history_resets = frozenset()
 
     def execute(self, rc, frame):
         prog = self.program(rc, "screen_space/composite.comp", {f"MODE_{self.mode}": 1})
@@ -349,8 +305,8 @@ class CompositePass(ScreenPass):
         bind_gbuffer(rc, prog, units)
         res[COLOR].bind_to_image(0, read=True, write=True)
         if self.ao_output:
-            rc.texture(self.ao_output, 4, "f4").bind_to_image(1, read=False, write=True)
-        rc.texture(self.effect_output, 4, "f4").bind_to_image(2, read=False, write=True)
+            res[self.ao_output].bind_to_image(1, read=False, write=True)
+        res[self.effect_output].bind_to_image(2, read=False, write=True)
         self.run(rc, prog)
 
 
@@ -362,9 +318,12 @@ def ao_chain(prefix: str, raw_pass: Pass, quality, provides, *, mode: str = "AO"
     Resources: ``<prefix>.raw`` (raw_pass writes it), ``<prefix>.temporal``, ``<prefix>.ao``
     (filtered signal), ``<prefix>.aov`` (the AO effect image, background 1)."""
     bg = (1.0, 1.0, 1.0, 1.0) if mode == "AO" else (0.0, 0.0, 0.0, 1.0)
+    # occlusion depends on geometry and the view only; a bounce depends on lights and materials too
+    resets = frozenset({CAMERA_CUT, PARAM_CHANGE, "geometry", "transforms"}) if mode == "AO" else ALL_EVENTS
     chain = [raw_pass,
              TemporalPass(quality, name=f"{prefix}_temporal", source=f"{prefix}.raw",
-                          output=f"{prefix}.temporal", background=bg, provides=provides, **(temporal or {})),
+                          output=f"{prefix}.temporal", background=bg, provides=provides, resets=resets,
+                          **(temporal or {})),
              BilateralPass(quality, name=f"{prefix}_blur", source=f"{prefix}.temporal", output=f"{prefix}.ao",
                            length=f"{prefix}.temporal.len", provides=provides, **(blur or {}))]
     if mode == "AO":

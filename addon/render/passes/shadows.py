@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from ..framegraph import Effect, Param, Pass
+from ..framegraph import BUFFER, HOST, Effect, Param, Pass, Res
 from ..gpu_scene import LIGHT_MESH, set_uniform
 from ..scene_data import LightType
 
@@ -80,7 +80,15 @@ class ShadowPass(Pass):
 
     name = "shadows"
     provides = frozenset({Effect.SHADOWS, Effect.ENVIRONMENT})
+    kind = "raster"
     writes = (ATLAS, VIEWS, WORLD_RANGE)
+    # sizes depend on the lights: the pass allocates them (managed=False); the views are
+    # written from the CPU, the world range is a Python object
+    declared = (Res(ATLAS, components=1, dtype="f4", managed=False, check="none"),
+                Res(VIEWS, kind=BUFFER, managed=False, check="none"),
+                Res(WORLD_RANGE, kind=HOST, managed=False, check="none"))
+    # re-rendered every frame; views of lights without size are reused until the scene changes
+    history_resets = frozenset({"geometry", "transforms", "lights", "param_change", "camera_cut"})
     params = (
         Param("shadow_resolution", 512, 64, 4096, "texels per side of one cube face / cascade"),
         Param("cascades", 3, 1, 4, "sun cascades"),

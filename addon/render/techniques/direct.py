@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..framegraph import Effect, Param, Pass
+from ..framegraph import Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from ..passes.gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION, GBufferPass
 from ..passes.shadows import ATLAS, VIEWS, WORLD_RANGE, ShadowPass
@@ -44,17 +44,13 @@ class DirectLightPass(Pass):
     reads = (ALBEDO, NORMAL, POSITION, GEONORMAL)
     optional_reads = (ATLAS, VIEWS, WORLD_RANGE)  # the shadow pass runs only if something casts shadows
     writes = (COLOR, AOV_DIRECT, AOV_EMIT, WORLD_SPEC)
+    declared = tuple(Res(n, check="radiance") for n in writes)
+    history_resets = frozenset()
     params = (
         Param("glossy_samples", 2, 1, 16, "light+BSDF sample pairs per light per pixel per frame"),
         Param("mesh_exact_max", 64, 0, 256, "emissive meshes up to this many triangles are integrated exactly"),
     )
     quality_ladder = ({"glossy_samples": 1}, {"glossy_samples": 2}, {"glossy_samples": 4}, {"glossy_samples": 8})
-
-    def compile(self, rc):
-        rc.texture(COLOR, 4, "f4")
-        rc.texture(AOV_DIRECT, 4, "f4")
-        rc.texture(AOV_EMIT, 4, "f4")
-        rc.texture(WORLD_SPEC, 4, "f4")
 
     def execute(self, rc, frame):
         prog = rc.programs.compute("direct/direct.comp")

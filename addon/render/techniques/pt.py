@@ -33,7 +33,7 @@ import time
 
 import numpy as np
 
-from ..framegraph import Effect, Param, Pass
+from ..framegraph import Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 # the BVH, light selection and their checks live in the shared component (rt_scene.SceneRT);
 # re-exported here for scripts written against the old names
@@ -51,6 +51,8 @@ class PathTracePass(Pass):
     always = True
     reads = ()
     writes = (COLOR, AOV_DIRECT, AOV_IND_DIFFUSE, AOV_IND_GLOSSY)
+    declared = tuple(Res(n, check="radiance") for n in writes)
+    history_resets = frozenset()
     params = (
         Param("spp_per_frame", 1, 1, 64, "samples per pixel traced in one frame"),
         Param("max_bounces", 12, 0, 64, "Cycles' Max Bounces (total)"),
@@ -64,10 +66,6 @@ class PathTracePass(Pass):
     def __init__(self, quality=None, **props):
         super().__init__(quality, **props)
         self.bvh_ms = 0.0
-
-    def compile(self, rc):
-        for name in self.writes:
-            rc.texture(name, 4, "f4")
 
     def execute(self, rc, frame):
         rt = rc.scene.rt()  # the session's shared BVH (rebuilt there only when geometry changes)
@@ -113,6 +111,8 @@ def render_offline(ctx, scene, frames: int, *, spp_per_frame: int = 4, seed: int
     programs = programs or ProgramCache(ctx)
     rc = RenderContext(ctx, programs, gs, (scene.width, scene.height))
     p = PathTracePass(None, spp_per_frame=spp_per_frame, **props)
+    for d in p.resources():
+        rc.allocate(d, p.props)
     p.compile(rc)
     out = np.zeros((frames, scene.height, scene.width, 3), np.float32)
     aovs = {n: np.zeros((scene.height, scene.width, 3), np.float64) for n in p.writes[1:]}

@@ -29,7 +29,7 @@ Quality ladder (samples, points, scale, blur): 0 = 4, 2, 0.5, 3; 1 = 8, 3, 1, 2;
 """
 from __future__ import annotations
 
-from ..framegraph import Effect, Param
+from ..framegraph import Effect, Param, Res
 from ..gpu_scene import set_uniform
 from ..passes.gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION, GBufferPass
 from ..passes.screen_space import ScreenPass, Units, ao_chain, bind_frame, bind_gbuffer, scaled
@@ -51,12 +51,11 @@ class AOPass(ScreenPass):
         super().__init__(quality, **kw)
         self.reads = (ALBEDO, NORMAL, POSITION, GEONORMAL)
         self.writes = (f"{self.prefix}.raw",)
+        self.declared = (Res(self.writes[0], dtype="f2", scale="scale", check="radiance"),)
+        self.history_resets = frozenset()
 
     def out_size(self, rc):
         return scaled(rc.size, float(self["scale"]))
-
-    def compile(self, rc):
-        rc.texture(self.writes[0], 4, "f2", size=self.out_size(rc))
 
     def set_uniforms(self, prog):
         raise NotImplementedError
@@ -67,7 +66,7 @@ class AOPass(ScreenPass):
         bind_gbuffer(rc, prog, Units(1))
         self.set_uniforms(prog)
         size = self.out_size(rc)
-        rc.texture(self.writes[0], 4, "f2", size=size).bind_to_image(0, read=False, write=True)
+        rc.resources[self.writes[0]].bind_to_image(0, read=False, write=True)
         self.run(rc, prog, size)
 
 

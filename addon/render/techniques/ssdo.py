@@ -74,7 +74,7 @@ class SSDOPass(AOPass):
         set_uniform(prog, "u_far_distance", far)
         set_uniform(prog, "u_far_points", int(self["far_points"]))
         size = self.out_size(rc)
-        rc.texture(self.writes[0], 4, "f2", size=size).bind_to_image(0, read=False, write=True)
+        rc.resources[self.writes[0]].bind_to_image(0, read=False, write=True)
         self.run(rc, prog, size)
 
     def set_uniforms(self, prog):

@@ -28,7 +28,7 @@ Quality ladder (steps, resolve, scale): 0 = 32, 4, 0.5; 1 = 64, 6, 1; 2 = 128, 8
 """
 from __future__ import annotations
 
-from ..framegraph import Effect, Param
+from ..framegraph import Effect, Param, Res
 from ..gpu_scene import set_uniform
 from ..passes.gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION, GBufferPass
 from ..passes.screen_space import (DIRECT_RADIANCE, HIZ, CompositePass, HiZPass, ScreenPass, TemporalPass,
@@ -56,13 +56,11 @@ class SSRTracePass(ScreenPass):
                       {"steps": 128, "scale": 1.0}, {"steps": 256, "scale": 1.0})
     reads = (ALBEDO, NORMAL, POSITION, GEONORMAL, HIZ)
     writes = (RAY0, RAY1)
+    declared = (Res(RAY0, scale="scale"), Res(RAY1, scale="scale"))
+    history_resets = frozenset()
 
     def size(self, rc):
         return scaled(rc.size, float(self["scale"]))
-
-    def compile(self, rc):
-        rc.texture(RAY0, 4, "f4", size=self.size(rc))
-        rc.texture(RAY1, 4, "f4", size=self.size(rc))
 
     def execute(self, rc, frame):
         prog = self.program(rc, "screen_space/ssr_trace.comp")
@@ -78,8 +76,8 @@ class SSRTracePass(ScreenPass):
                      ("max_roughness", "u_max_roughness"), ("edge_fade", "u_edge_fade"), ("bias", "u_bias")):
             set_uniform(prog, u, float(self[k]))
         size = self.size(rc)
-        rc.texture(RAY0, 4, "f4", size=size).bind_to_image(0, read=False, write=True)
-        rc.texture(RAY1, 4, "f4", size=size).bind_to_image(1, read=False, write=True)
+        rc.resources[RAY0].bind_to_image(0, read=False, write=True)
+        rc.resources[RAY1].bind_to_image(1, read=False, write=True)
         self.run(rc, prog, size)
 
 
@@ -99,9 +97,8 @@ class SSRResolvePass(ScreenPass):
                       {"resolve_samples": 12})
     reads = (RAY0, RAY1, DIRECT_RADIANCE, ALBEDO, NORMAL, POSITION, GEONORMAL)
     writes = (RESOLVED,)
-
-    def compile(self, rc):
-        rc.texture(RESOLVED, 4, "f2")
+    declared = (Res(RESOLVED, dtype="f2", check="radiance"),)
+    history_resets = frozenset()
 
     def execute(self, rc, frame):
         prog = self.program(rc, "screen_space/ssr_resolve.comp")
@@ -114,7 +111,7 @@ class SSRResolvePass(ScreenPass):
         units.tex(prog, "u_radiance", res[DIRECT_RADIANCE])
         set_uniform(prog, "u_resolve_samples", int(self["resolve_samples"]))
         set_uniform(prog, "u_max_roughness", float(self["max_roughness"]))
-        rc.texture(RESOLVED, 4, "f2").bind_to_image(0, read=False, write=True)
+        rc.resources[RESOLVED].bind_to_image(0, read=False, write=True)
         self.run(rc, prog)
 
 
