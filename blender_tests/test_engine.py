@@ -355,27 +355,70 @@ def test_spot_light_uses_one_perspective_view():
         bpy.data.scenes.remove(sc)
 
 
-def test_viewport_progressive_with_fake_gpu(monkeypatch):
-    """view_update/view_draw logic without a window: Blender's gpu module is replaced by a
-    recorder (it draws nothing headless). Checks the region camera, progressive accumulation
-    up to viewport_samples, redraw requests stopping there, restart on a view change, and the
-    finite, clamped texture data handed to Blender."""
+def fake_gpu_modules(monkeypatch):
+    """Stand-ins for Blender's ``gpu`` and ``gpu_extras.presets`` (they draw nothing headless)
+    that record texture uploads and draws."""
     import types
-    from mathutils import Matrix
 
-    uploads, draws = [], []
+    rec = {"uploads": [], "draws": []}
     fake_gpu = types.ModuleType("gpu")
     fake_gpu.types = types.SimpleNamespace(
         Buffer=lambda fmt, n, data: np.asarray(data, np.float32).copy(),
-        GPUTexture=lambda size, format, data: uploads.append((size, format, data)) or ("tex", size))
+        GPUTexture=lambda size, format, data: rec["uploads"].append((size, format, data)) or ("tex", size))
     fake_gpu.state = types.SimpleNamespace(blend_set=lambda mode: None)
     fake_extras = types.ModuleType("gpu_extras")
     fake_presets = types.ModuleType("gpu_extras.presets")
-    fake_presets.draw_texture_2d = lambda tex, pos, w, h: draws.append((tex, w, h))
+    fake_presets.draw_texture_2d = lambda tex, pos, w, h: rec["draws"].append((tex, w, h))
     monkeypatch.setitem(sys.modules, "gpu", fake_gpu)
     monkeypatch.setitem(sys.modules, "gpu_extras", fake_extras)
     monkeypatch.setitem(sys.modules, "gpu_extras.presets", fake_presets)
+    return rec
 
+
+def fake_view(sc, dg, width=80, height=60, view=None):
+    """A (context, engine) pair standing in for one Rendered 3D view: region size, the
+    RegionView3D's matrices, and an engine that records redraw requests."""
+    import types
+
+    cam = sc.camera
+    view = cam.matrix_world.inverted() if view is None else view
+    proj = cam.calc_matrix_camera(dg, x=width, y=height)
+    rv3d = types.SimpleNamespace(view_matrix=view, window_matrix=proj, is_perspective=True)
+    ctx = types.SimpleNamespace(region=types.SimpleNamespace(width=width, height=height), region_data=rv3d,
+                                scene=sc)
+    redraws = []
+    eng = types.SimpleNamespace(_viewport=engine_mod.ViewportState(), update_stats=lambda a, b: None,
+                                tag_redraw=lambda: redraws.append(time.perf_counter()),
+                                bind_display_space_shader=lambda s: None,
+                                unbind_display_space_shader=lambda: None)
+    eng.redraws = redraws
+    return ctx, eng
+
+
+def draw_until_idle(eng, ctx, dg, max_draws=50):
+    """Call view_draw as Blender would on each redraw: view_draw never blocks; between draws
+    wait for the frame in flight (Blender redraws when the engine tags it)."""
+    n = 0
+    for n in range(1, max_draws + 1):
+        t0 = time.perf_counter()
+        engine_mod.view_draw(eng, ctx, dg)
+        eng.draw_ms = max(getattr(eng, "draw_ms", 0.0), (time.perf_counter() - t0) * 1e3)
+        fut = eng._viewport.future
+        if fut is None:
+            break
+        fut.result(timeout=120)
+    return n
+
+
+def test_viewport_progressive_with_fake_gpu(monkeypatch):
+    """view_update/view_draw logic without a window: Blender's gpu module is replaced by a
+    recorder (it draws nothing headless). Checks the region camera, progressive accumulation
+    up to viewport_samples (view_draw never waits: each finished frame tags a redraw, the
+    next draw shows it and submits the next), restart on a view change, and the finite,
+    clamped texture data handed to Blender."""
+    from mathutils import Matrix
+
+    rec = fake_gpu_modules(monkeypatch)
     sc = build_demo("cornell", resolution=32)
     try:
         sc.gi_preview.technique = "DIRECT"
@@ -383,34 +426,34 @@ def test_viewport_progressive_with_fake_gpu(monkeypatch):
         sc.gi_preview.viewport_scale = 0.5
         with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
             dg = bpy.context.evaluated_depsgraph_get()
-        cam = sc.camera
-        view = cam.matrix_world.inverted()
-        proj = cam.calc_matrix_camera(dg, x=80, y=60)
-        rv3d = types.SimpleNamespace(view_matrix=view, window_matrix=proj, is_perspective=True)
-        ctx = types.SimpleNamespace(region=types.SimpleNamespace(width=80, height=60), region_data=rv3d,
-                                    scene=sc)
-        redraws = []
-        eng = types.SimpleNamespace(_viewport=engine_mod.ViewportState(), update_stats=lambda a, b: None,
-                                    tag_redraw=lambda: redraws.append(1),
-                                    bind_display_space_shader=lambda s: None,
-                                    unbind_display_space_shader=lambda: None)
+        ctx, eng = fake_view(sc, dg)
         engine_mod.view_update(eng, ctx, dg)
         assert eng._viewport.data is not None and eng._viewport.error is None
-        for _ in range(5):
-            engine_mod.view_draw(eng, ctx, dg)
+        draws = draw_until_idle(eng, ctx, dg)
         assert eng._viewport.count == 3
-        assert len(uploads) == 3 and len(redraws) == 2 and len(draws) == 5
-        size, fmt, data = uploads[-1]
+        # 1st draw submits (nothing to show yet), then one draw per finished frame
+        assert draws == 4 and len(rec["uploads"]) == 3 and len(rec["draws"]) == 3
+        assert len(eng.redraws) == 3  # every finished frame asked for a redraw
+        for _ in range(3):  # converged: drawing again submits nothing and uploads nothing
+            engine_mod.view_draw(eng, ctx, dg)
+        assert eng._viewport.future is None and len(rec["uploads"]) == 3
+        size, fmt, data = rec["uploads"][-1]
         assert size == (40, 30) and fmt == "RGBA16F"
         assert np.isfinite(data).all() and data.max() <= 65504 and data[0::4].mean() > 1e-3
         # the region camera is the view we gave
-        c = eng._viewport.data.camera
-        assert np.allclose(c.view, np.array(view), atol=1e-5)
+        rv3d = ctx.region_data
+        c = engine_mod._region_camera(ctx)
+        assert np.allclose(c.view, np.array(rv3d.view_matrix), atol=1e-5)
         # moving the view restarts the accumulation
-        rv3d.view_matrix = Matrix.Translation((0.1, 0, 0)) @ view
+        rv3d.view_matrix = Matrix.Translation((0.1, 0, 0)) @ rv3d.view_matrix
+        engine_mod.view_draw(eng, ctx, dg)
+        assert eng._viewport.count == 0 and eng._viewport.future is not None
+        eng._viewport.future.result(timeout=60)
         engine_mod.view_draw(eng, ctx, dg)
         assert eng._viewport.count == 1
+        print(f"longest view_draw call {eng.draw_ms:.2f} ms")
     finally:
+        eng._viewport.free()
         bpy.data.scenes.remove(sc)
 
 

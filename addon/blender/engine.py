@@ -6,13 +6,18 @@ at one boundary (``export.export_scene``), the render runs on the GL thread
 
 * F12 / ``blender -b file -E GI_PREVIEW -f N`` / animations: ``final_render``. Temporal
   state is kept across the frames of one animation job (``engine.is_animation``).
-* Viewport: ``view_update`` re-exports the scene when the depsgraph changed; ``view_draw``
-  renders one more accumulated frame for the region's view (nothing is re-exported when
-  only the view moved) and draws it through Blender's ``gpu`` module; redraws continue
-  until ``viewport_samples`` frames are accumulated.
+* Viewport: every Rendered 3D view (one RenderEngine each) has its own render session.
+  ``view_update`` updates the scene incrementally from ``depsgraph.updates`` (moving an
+  object re-reads matrices, not meshes); ``view_draw`` never waits for a render: it draws
+  the newest finished image through Blender's ``gpu`` module and submits the next
+  accumulated frame to the GL thread, whose completion tags a redraw, until
+  ``viewport_samples`` frames are accumulated. Viewport frames run before the next frame
+  of an F12 render, so both progress together.
 """
 from __future__ import annotations
 
+import dataclasses
+import itertools
 import json
 import logging
 import time
@@ -24,7 +29,7 @@ from ..render import session, techniques
 from ..render.gl import GLUnavailableError
 from ..render.scene_data import Camera, SceneError
 from ..render.shaders import ShaderError
-from .export import export_scene
+from .export import SceneExporter, export_scene
 
 log = logging.getLogger(__name__)
 
@@ -154,32 +159,71 @@ def register_passes(engine, scene, view_layer):
 
 
 # ------------------------------------------------------------------ viewport
+_view_serial = itertools.count(1)
+
+
 class ViewportState:
+    """One 3D view's viewport: its own render session (``session_key``), the exporter that
+    keeps unchanged meshes between view updates, the render in flight and the newest
+    image. Blender makes one RenderEngine per Rendered 3D view, and so one of these."""
+
     def __init__(self):
-        self.data = None
-        self.key = None
+        self.data = None  # SceneData of the last view_update (camera/size set per draw)
+        self.exporter = SceneExporter()
+        self.key = None  # what the shown accumulation is of: view, size, technique, data
         self.texture = None
         self.error = None
-        self.count = 0
+        self.error_key = None
+        self.count = 0  # samples accumulated for ``key``
+        self.future = None  # the render in flight (one at a time)
+        self.future_key = None
+        self.session_key = None
+        self.data_version = 0
+        self.alive = True
+        self.last_frame_ms = 0.0
+        self.last_update = {}  # what the last view_update did (for tests and benchmarks)
+
+    def session_for(self, region_data) -> tuple:
+        if self.session_key is None:
+            ptr = region_data.as_pointer() if hasattr(region_data, "as_pointer") else 0
+            self.session_key = ("viewport", ptr, next(_view_serial))
+        return self.session_key
 
     def free(self):
+        """The view is gone: stop its render and free its session's GL resources."""
+        self.alive = False
+        if self.future is not None:
+            self.future.cancel_event.set()
         self.texture = None
+        if self.session_key is not None:
+            try:
+                session.release_session(self.session_key)
+            except Exception:  # noqa: BLE001 - the GL thread may be gone at exit
+                pass
+            self.session_key = None
 
 
 def view_update(engine, context, depsgraph):
+    """Bring the viewport's SceneData up to date: a full export the first time, then only
+    what ``depsgraph.updates`` says changed (moving an object re-reads matrices and lights,
+    not meshes; see ``export.SceneExporter``)."""
     st = engine._viewport
     region = context.region
     scale = context.scene.gi_preview.viewport_scale
     w = max(4, int(region.width * scale))
     h = max(4, int(region.height * scale))
+    t0 = time.perf_counter()
     try:
         # the camera is replaced at draw time by the region's view
         dummy = Camera("viewport", np.eye(4, dtype=np.float32), np.eye(4, dtype=np.float32))
-        st.data = export_scene(depsgraph, width=w, height=h, view_camera=dummy)
+        updates = None if st.data is None else list(depsgraph.updates)
+        st.data = st.exporter.export(depsgraph, updates, width=w, height=h, view_camera=dummy)
         st.error = None
     except SceneError as exc:
         st.data, st.error = None, str(exc)
-    st.key = None  # restart accumulation
+    st.data_version += 1
+    st.last_update = dict(st.exporter.last_stats, ms=(time.perf_counter() - t0) * 1e3,
+                          full=updates is None if st.error is None else True)
 
 
 def _region_camera(context) -> Camera:
@@ -198,44 +242,87 @@ def _region_camera(context) -> Camera:
                   float(abs(near)), float(abs(far)))
 
 
-def view_draw(engine, context, depsgraph):
+def _upload(st, res, w, h):
     import gpu
+
+    img = np.nan_to_num(res.image, nan=0.0, posinf=65504.0, neginf=0.0)
+    img = np.clip(img, 0.0, 65504.0).astype(np.float32)
+    buf = gpu.types.Buffer("FLOAT", w * h * 4, img.ravel())
+    st.texture = gpu.types.GPUTexture((w, h), format="RGBA16F", data=buf)
+
+
+def _redraw_callback(engine, st):
+    """Called on the GL thread when a viewport frame is ready: ask Blender to redraw the view
+    (``tag_redraw`` only sets a flag the window manager reads; Cycles calls it from its own
+    threads too). Nothing is done once the view is gone."""
+    def done(_fut):
+        if st.alive:
+            try:
+                engine.tag_redraw()
+            except (ReferenceError, RuntimeError):
+                pass
+    return done
+
+
+def view_draw(engine, context, depsgraph):
+    """Draw the newest finished image of this view and keep its accumulation going; never
+    waits for a render. A finished frame is uploaded here; the next frame is submitted to
+    the GL thread (``session.submit_render``, interactive priority: it runs before the next
+    frame of an F12 render), and its completion tags a redraw."""
     from gpu_extras.presets import draw_texture_2d
+    import gpu
 
     st = engine._viewport
     scene = depsgraph.scene
+    region = context.region
     if st.data is None:
         if st.error:
             engine.update_stats("", f"GI Preview: {st.error}")
         return
-    region = context.region
     scale = scene.gi_preview.viewport_scale
     w = max(4, int(region.width * scale))
     h = max(4, int(region.height * scale))
-    data = st.data
-    data.camera = _region_camera(context)
-    data.width, data.height = w, h
+    cam = _region_camera(context)
     technique, quality, _ = _settings(scene)
     target = int(scene.gi_preview.viewport_samples)
-    key = (technique, quality, w, h, data.camera.view.tobytes(), data.camera.projection.tobytes(), id(data))
+    key = (technique, quality, w, h, cam.view.tobytes(), cam.projection.tobytes(), st.data_version)
     if key != st.key:
         st.key, st.count = key, 0
-    if st.count < target or st.texture is None:
+    # a finished frame: show it (even one of an older view: the newest image there is)
+    fut = st.future
+    if fut is not None and fut.done():
+        st.future = None
         try:
-            res = session.render(data, technique, quality, 1, continue_accumulation=st.count > 0,
-                                 keep_history=True, session="viewport")
+            res = fut.result()
+        except session.Cancelled:
+            res = None
         except (GLUnavailableError, SceneError, ShaderError, ValueError) as exc:
+            st.error, st.error_key = str(exc), st.future_key
             engine.update_stats("", f"GI Preview: {exc}")
-            return
-        st.count = res.samples
-        img = np.nan_to_num(res.image, nan=0.0, posinf=65504.0, neginf=0.0)
-        img = np.clip(img, 0.0, 65504.0).astype(np.float32)
-        buf = gpu.types.Buffer("FLOAT", w * h * 4, img.ravel())
-        st.texture = gpu.types.GPUTexture((w, h), format="RGBA16F", data=buf)
-        engine.update_stats("", f"GI Preview {res.technique}: {st.count}/{target} samples, "
-                                f"{res.frame_ms:.1f} ms/frame")
-        if st.count < target:
-            engine.tag_redraw()
+            res = None
+        if res is not None:
+            rh, rw = res.image.shape[:2]
+            _upload(st, res, rw, rh)
+            st.last_frame_ms = res.frame_ms
+            if st.future_key == st.key:
+                st.count = res.samples
+            engine.update_stats("", f"GI Preview {res.technique}: {res.samples}/{target} samples, "
+                                    f"{res.frame_ms:.1f} ms/frame")
+    # the next frame, unless one is in flight or the view has converged
+    # (after an error, only once the view, settings or scene changed: no retry loop)
+    if st.future is None and st.count < target and (st.error is None or st.error_key != st.key):
+        data = dataclasses.replace(st.data, camera=cam, width=w, height=h)
+        try:
+            st.future = session.submit_render(
+                data, technique, quality, 1, continue_accumulation=True, keep_history=True,
+                session=st.session_for(context.region_data), on_done=_redraw_callback(engine, st))
+            st.future_key = st.key
+            st.error = None
+        except (GLUnavailableError, ValueError) as exc:
+            st.error, st.error_key = str(exc), st.key
+            engine.update_stats("", f"GI Preview: {exc}")
+    if st.texture is None:
+        return
     gpu.state.blend_set("ALPHA_PREMULT")
     engine.bind_display_space_shader(scene)
     draw_texture_2d(st.texture, (0, 0), region.width, region.height)

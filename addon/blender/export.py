@@ -30,7 +30,7 @@ import numpy as np
 from ..render.scene_data import (AreaShape, Camera, Instance, Light, LightType, Material,
                                  Mesh, SceneData, SceneError, Texture, World)
 
-__all__ = ["export_scene", "DEFAULT_MATERIAL_NAME"]
+__all__ = ["export_scene", "SceneExporter", "instance_id", "DEFAULT_MATERIAL_NAME"]
 
 DEFAULT_MATERIAL_NAME = "GI Preview Default"
 _GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
@@ -89,13 +89,16 @@ def _output_node(tree):
 
 # ------------------------------------------------------------------------------ exporter
 class _Exporter:
-    def __init__(self, depsgraph):
+    def __init__(self, depsgraph, cache: "SceneExporter | None" = None):
         self.depsgraph = depsgraph
         self.data = SceneData()
         self._material_ids: dict[int, int] = {}
         self._texture_ids: dict[int, int] = {}
         self._mesh_ids: dict[tuple, int] = {}
         self._default_material: int | None = None
+        self.cache = cache
+        self.meshes_read = 0
+        self.meshes_reused = 0
 
     # -------------------------------------------------------------- warnings
     def warn(self, msg: str) -> None:
@@ -256,18 +259,30 @@ class _Exporter:
             return self._texture_ids[key]
         w, h = (int(image.size[0]), int(image.size[1]))
         idx = -1
-        if w > 0 and h > 0:
+        cached = self.cache._textures.get((key, w, h)) if self.cache is not None else None
+        if cached is not None:
+            tex, warn = cached
+            if warn:
+                self.warn(warn)
+            idx = len(self.data.textures)
+            self.data.textures.append(tex)
+        elif w > 0 and h > 0:
             px = np.empty(w * h * 4, np.float32)
             image.pixels.foreach_get(px)
             px = px.reshape(h, w, 4)
             cs = image.colorspace_settings.name
+            warn = None
             if not image.is_float and "srgb" in cs.lower() and "linear" not in cs.lower():
                 px[..., :3] = _srgb_to_linear(px[..., :3])
             elif cs.lower() not in ("non-color", "linear rec.709", "linear", "raw") and \
                     "linear" not in cs.lower() and not image.is_float:
-                self.warn(f"Image '{image.name}': colour space '{cs}' is treated as linear")
+                warn = f"Image '{image.name}': colour space '{cs}' is treated as linear"
+                self.warn(warn)
             idx = len(self.data.textures)
-            self.data.textures.append(Texture(name=image.name, pixels=np.ascontiguousarray(px)))
+            tex = Texture(name=image.name, pixels=np.ascontiguousarray(px))
+            self.data.textures.append(tex)
+            if self.cache is not None:
+                self.cache._textures[(key, w, h)] = (tex, warn)
         self._texture_ids[key] = idx
         return idx
 
@@ -281,20 +296,39 @@ class _Exporter:
             return tuple(self.material(m) for m in mats)
         return (self.default_material(),)
 
-    def add_mesh(self, key, mesh, lut: tuple[int, ...], name: str) -> int:
+    def add_mesh(self, key, mesh, lut: tuple[int, ...], name: str, deps: tuple = ()) -> int:
+        """Index of the evaluated ``mesh`` in ``data.meshes`` (read once per export; with a
+        :class:`SceneExporter`, reused from the last export unless one of ``deps``, the
+        names of the objects and data it comes from, had a geometry update)."""
         full_key = (key, lut)
         idx = self._mesh_ids.get(full_key)
         if idx is None:
+            m = None
+            ckey = None
+            if self.cache is not None:
+                ckey = (key, lut, len(mesh.vertices), len(mesh.polygons), name)
+                hit = self.cache._meshes.get(ckey)
+                if hit is not None:
+                    m = hit[0]
+                    hit[1].update(deps)
+                    self.meshes_reused += 1
+            if m is None:
+                m = _read_mesh(mesh, np.asarray(lut, np.int32), name)
+                self.meshes_read += 1
+                if ckey is not None:
+                    self.cache._meshes[ckey] = (m, set(deps))
+            if ckey is not None:
+                self.cache._used.add(ckey)
             idx = len(self.data.meshes)
-            self.data.meshes.append(_read_mesh(mesh, np.asarray(lut, np.int32), name))
+            self.data.meshes.append(m)
             self._mesh_ids[full_key] = idx
         return idx
 
-    def add_instance(self, mesh_idx: int, matrix, object_name: str) -> None:
+    def add_instance(self, mesh_idx: int, matrix, object_name: str, instance_id: str = "") -> None:
         if self.data.meshes[mesh_idx].triangle_count == 0:
             return
         self.data.instances.append(Instance(mesh=mesh_idx, matrix=_matrix(matrix),
-                                            object_name=object_name))
+                                            object_name=object_name, instance_id=instance_id))
 
     def run_geometry_and_lights(self) -> None:
         dg = self.depsgraph
@@ -323,9 +357,12 @@ class _Exporter:
                         inst.parent.original.type in _TO_MESH_TYPES:
                     mesh_parents.add(inst.parent.original.as_pointer())
                 lut = self.slot_materials(ob, mesh)
+                deps = (orig.name_full, _data_name(orig))
+                if inst.is_instance and inst.parent is not None:
+                    deps += (inst.parent.original.name_full,)
                 idx = self.add_mesh(("data", mesh.as_pointer()), mesh, lut,
-                                    mesh.name if not inst.is_instance else f"{orig.name}:{mesh.name}")
-                self.add_instance(idx, inst.matrix_world, orig.name)
+                                    mesh.name if not inst.is_instance else f"{orig.name}:{mesh.name}", deps)
+                self.add_instance(idx, inst.matrix_world, orig.name, instance_id(inst))
             elif typ in _TO_MESH_TYPES and not inst.is_instance:
                 deferred.append((orig, _matrix(inst.matrix_world)))
         for orig, matrix in deferred:
@@ -339,8 +376,9 @@ class _Exporter:
             try:
                 if mesh is not None and len(mesh.polygons):
                     lut = self.slot_materials(ob, mesh)
-                    idx = self.add_mesh(("to_mesh", orig.as_pointer()), mesh, lut, orig.name)
-                    self.add_instance(idx, matrix, orig.name)
+                    idx = self.add_mesh(("to_mesh", orig.as_pointer()), mesh, lut, orig.name,
+                                        (orig.name_full, _data_name(orig)))
+                    self.add_instance(idx, matrix, orig.name, orig.name_full)
             finally:
                 ob.to_mesh_clear()
 
@@ -445,6 +483,29 @@ class _Exporter:
                                   clip_start=float(cd.clip_start), clip_end=float(cd.clip_end))
 
 
+_NO_ID = 2147483647  # unused slots of DepsgraphObjectInstance.persistent_id
+
+
+def _data_name(ob) -> str:
+    data = getattr(ob, "data", None)
+    return f"data:{data.name_full}" if data is not None else ""
+
+
+def instance_id(inst) -> str:
+    """A stable id of one ``DepsgraphObjectInstance``: the object's name for a real object,
+    ``"<instancer>/<object>/<persistent id>"`` for an instance (collection instances,
+    particles, geometry nodes). The persistent id is relative to the instancer, so the
+    instancer's name makes it unique; it stays the same from frame to frame."""
+    orig = inst.object.original
+    if not inst.is_instance:
+        return orig.name_full
+    par = inst.parent
+    pid = [int(x) for x in inst.persistent_id]
+    while pid and pid[-1] == _NO_ID:
+        pid.pop()
+    return f"{par.original.name_full if par is not None else ''}/{orig.name_full}/{'.'.join(map(str, pid))}"
+
+
 def _read_mesh(mesh, lut: np.ndarray, name: str) -> Mesh:
     """Triangle-soup arrays of an evaluated mesh (no per-element Python loops)."""
     mesh.calc_loop_triangles()
@@ -492,7 +553,8 @@ def _read_mesh(mesh, lut: np.ndarray, name: str) -> Mesh:
 
 
 def export_scene(depsgraph, *, width: int | None = None, height: int | None = None,
-                 camera=None, view_camera: Camera | None = None) -> SceneData:
+                 camera=None, view_camera: Camera | None = None,
+                 cache: "SceneExporter | None" = None) -> SceneData:
     """Convert an evaluated depsgraph into a :class:`SceneData`.
 
     ``width``/``height`` default to the scene's render resolution times its percentage;
@@ -510,7 +572,7 @@ def export_scene(depsgraph, *, width: int | None = None, height: int | None = No
     if width < 4 or height < 4:
         raise SceneError(f"Scene '{scene.name}': the render resolution {width}x{height} is too "
                          "small; GI Preview needs at least 4x4 pixels")
-    ex = _Exporter(depsgraph)
+    ex = _Exporter(depsgraph, cache)
     if view_camera is not None:
         ex.data.camera = view_camera
     else:
@@ -521,4 +583,62 @@ def export_scene(depsgraph, *, width: int | None = None, height: int | None = No
     data.width, data.height = width, height
     data.frame = int(scene.frame_current)
     data.name = scene.name
+    if cache is not None:
+        cache.last_stats = {"meshes_read": ex.meshes_read, "meshes_reused": ex.meshes_reused}
     return data
+
+
+class SceneExporter:
+    """Exports one depsgraph again and again, reading only what changed (the viewport).
+
+    ``export(depsgraph, updates=None, ...)`` returns a new :class:`SceneData` each time, but
+    hands back the *same* ``Mesh`` objects (numpy arrays) for geometry that did not change,
+    so nothing is re-read from Blender and the GPU scene neither re-hashes nor re-uploads
+    them: moving an object costs one walk over ``depsgraph.object_instances`` (matrices,
+    lights, materials). ``updates`` is ``depsgraph.updates`` of the view update: every ID
+    with ``is_updated_geometry`` (an object, or its mesh/curve data) drops the meshes read
+    from it; an updated image drops the cached texture pixels. ``updates=None`` forgets
+    everything (a full export). A new SceneData rather than an edit in place, because the
+    GL thread may still be rendering the previous one.
+
+    ``last_stats``: ``meshes_read`` / ``meshes_reused`` of the last export."""
+
+    def __init__(self):
+        self._meshes: dict = {}  # key -> (Mesh, set of dependency names)
+        self._textures: dict = {}  # (image pointer, w, h) -> (Texture, warning)
+        self._used: set = set()
+        self.last_stats: dict = {}
+
+    def invalidate(self, updates) -> None:
+        dirty = set()
+        images = False
+        for u in updates:
+            idb = u.id
+            if isinstance(idb, bpy.types.Image):
+                images = True
+                continue
+            if not u.is_updated_geometry:
+                continue
+            orig = getattr(idb, "original", None) or idb
+            name = orig.name_full
+            if isinstance(idb, bpy.types.Object):
+                dirty.add(name)
+            else:
+                dirty.add(f"data:{name}")
+        if images:
+            self._textures.clear()
+        if dirty:
+            for k in [k for k, (_, deps) in self._meshes.items() if deps & dirty]:
+                del self._meshes[k]
+
+    def export(self, depsgraph, updates=None, **kwargs) -> SceneData:
+        if updates is None:
+            self._meshes.clear()
+            self._textures.clear()
+        else:
+            self.invalidate(updates)
+        self._used = set()
+        data = export_scene(depsgraph, cache=self, **kwargs)
+        for k in [k for k in self._meshes if k not in self._used]:  # objects gone
+            del self._meshes[k]
+        return data

@@ -2,7 +2,9 @@
 
 Host side of the std430 structs declared in ``shaders/lib/common.glsl`` (keep in step).
 Uploads are incremental: a mesh's vertex buffer is kept while its content hash is the
-same, so moving an object or editing a light re-uploads only small buffers.
+same (the hash is cached on the ``Mesh`` object, so an exporter that hands back the same
+``Mesh`` for unchanged geometry costs no hashing), so moving an object or editing a light
+re-uploads only small buffers, and ``update`` reports it as ``transforms`` / ``lights``.
 """
 from __future__ import annotations
 
@@ -212,7 +214,7 @@ class GPUScene:
         self.ctx = ctx
         self._vbos: dict[str, tuple] = {}  # key -> (vbo, vertex count)
         self._vaos: dict = {}
-        self.draws: list[tuple] = []  # (key, model matrix, normal matrix, object name)
+        self.draws: list[tuple] = []  # (key, model matrix, normal matrix, instance id)
         self.material_buf = None
         self.light_buf = None
         self.emitter_buf = None
@@ -221,16 +223,26 @@ class GPUScene:
         self.emitters: EmitterSet | None = None
         self.light_count = 0
         self.emitter_count = 0
-        self.prev_matrices: dict[str, np.ndarray] = {}
-        self.matrices: dict[str, np.ndarray] = {}
+        self.prev_matrices: dict[str, np.ndarray] = {}  # instance id -> matrix at the last update
+        self.matrices: dict[str, np.ndarray] = {}  # instance id -> current matrix
+        self._motion_pending = False  # prev_matrices not yet drawn by a G-buffer frame
         self._fp = {}
         self.version = 0  # bumps on any change (history invalidation)
         self.setup_ms = 0.0  # one-time work (BVH builds, uploads) done for this scene so far, in ms
 
     # ------------------------------------------------------------------ upload
     def update(self, scene: SceneData) -> dict:
-        changes = {"geometry": False, "materials": False, "lights": False, "textures": False}
-        self.prev_matrices = self.matrices
+        """Bring the buffers up to ``scene``; returns which parts changed (the frame graph's
+        scene-edit events, ``framegraph.SCENE_EDITS``): ``geometry`` (a mesh was added,
+        removed or its vertex data changed, or instances were added/removed), ``transforms``
+        (only instance matrices changed: nothing is re-uploaded but the matrices),
+        ``materials``, ``lights``, ``textures``.
+
+        Motion: the previous matrices are kept per instance id (``SceneData.instance_ids``),
+        so every instance of one object, moving on its own, gets its own motion vectors.
+        An instance new since the last update has no previous transform (no motion)."""
+        changes = {"geometry": False, "transforms": False, "materials": False, "lights": False,
+                   "textures": False}
         # geometry
         keys = []
         needed = set()
@@ -282,18 +294,23 @@ class GPUScene:
                 changes["geometry"] = True
         draws = []
         mats = {}
-        for inst, key in zip(scene.instances, keys):
+        for inst, key, iid in zip(scene.instances, keys, scene.instance_ids()):
             M = inst.matrix.astype(np.float64)
             try:
                 nm = np.linalg.inv(M[:3, :3]).T
             except np.linalg.LinAlgError:
                 nm = np.eye(3)
-            draws.append((key, M.astype(np.float32), nm.astype(np.float32), inst.object_name))
-            mats[inst.object_name] = M.astype(np.float32)
-        if [(d[0], d[1].tobytes()) for d in draws] != [(d[0], d[1].tobytes()) for d in self.draws]:
-            changes["geometry"] = True
+            draws.append((key, M.astype(np.float32), nm.astype(np.float32), iid))
+            mats[iid] = M.astype(np.float32)
+        if [(d[0], d[3]) for d in draws] != [(d[0], d[3]) for d in self.draws]:
+            changes["geometry"] = True  # instances added, removed, reordered or re-meshed
+        elif any(a[1].tobytes() != b[1].tobytes() for a, b in zip(draws, self.draws)):
+            changes["transforms"] = True
+        # motion: previous = the matrices of the last update (per instance id)
+        self.prev_matrices = self.matrices
         self.draws = draws
         self.matrices = mats
+        self._motion_pending = True
 
         # materials and textures
         mat = pack_materials(scene)
@@ -378,16 +395,24 @@ class GPUScene:
         return vao
 
     def draw(self, prog, *, prev: bool = False):
-        """Draw every instance with ``u_model``/``u_normal_matrix`` (and ``u_prev_model``)."""
-        for key, M, NM, name in self.draws:
+        """Draw every instance with ``u_model``/``u_normal_matrix``; with ``prev`` (the
+        G-buffer's motion vectors) also ``u_prev_model``, the instance's matrix at the last
+        update (keyed by instance id; its current matrix when it is new).
+
+        The motion of an update belongs to the first frame drawn after it: once a ``prev``
+        draw has run, later frames of the same render (accumulation samples) see every
+        instance at rest, as the camera's previous view is the last frame's."""
+        for key, M, NM, iid in self.draws:
             vbo, n = self._vbos[key]
             if not n:
                 continue
             set_uniform(prog, "u_model", M)
             set_uniform(prog, "u_normal_matrix", NM)
             if prev:
-                set_uniform(prog, "u_prev_model", self.prev_matrices.get(name, M))
+                set_uniform(prog, "u_prev_model", self.prev_matrices.get(iid, M) if self._motion_pending else M)
             self.vao(key, prog).render(vertices=n)
+        if prev:
+            self._motion_pending = False
 
     def rt(self):
         """The scene ray-tracing component (``rt_scene.SceneRT``) of this GPU scene, built on

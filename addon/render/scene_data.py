@@ -67,7 +67,15 @@ class Mesh:
 
 @dataclass
 class Instance:
-    """A mesh placed in the world. ``matrix``: (4,4) float32 object-to-world."""
+    """A mesh placed in the world. ``matrix``: (4,4) float32 object-to-world.
+
+    ``instance_id`` is stable across frames and edits and unique within the scene: the
+    object's name for a real object, ``"<instancer>/<object>/<persistent id>"`` for an
+    instance made by a collection instance, particles or geometry nodes (Blender's
+    ``DepsgraphObjectInstance.persistent_id``). Motion vectors and any per-instance history
+    are keyed by it (every instance of one object shares the object's name). Empty when
+    the producer gave none: :meth:`SceneData.instance_ids` then numbers the instances of
+    one object in order."""
 
     mesh: int
     matrix: np.ndarray
@@ -75,6 +83,7 @@ class Instance:
     # Per-instance material override: maps a mesh's material id to another (object-linked
     # materials); None when the mesh's own ids apply.
     material_map: np.ndarray | None = None
+    instance_id: str = ""
 
 
 @dataclass
@@ -223,6 +232,18 @@ class SceneData:
     warnings: list[str] = field(default_factory=list)
 
     # ---------------------------------------------------------------- queries
+    def instance_ids(self) -> list[str]:
+        """One unique, stable id per instance (``Instance.instance_id``; for instances built
+        without one, ``"<object>#<k>"``, k counting that object's instances in order)."""
+        seen: dict[str, int] = {}
+        out = []
+        for inst in self.instances:
+            base = inst.instance_id or f"{inst.object_name}#"
+            k = seen.get(base, 0)
+            seen[base] = k + 1
+            out.append(base if (inst.instance_id and k == 0) else f"{base}{k}")
+        return out
+
     @property
     def triangle_count(self) -> int:
         return sum(self.meshes[i.mesh].triangle_count for i in self.instances)
@@ -254,7 +275,7 @@ class SceneData:
                 h.update(np.ascontiguousarray(x).tobytes())
             elif dataclasses.is_dataclass(x):
                 for f in dataclasses.fields(x):
-                    if f.name == "warnings":
+                    if f.name in ("warnings", "instance_id"):  # do not change the image
                         continue
                     h.update(f.name.encode())
                     add(getattr(x, f.name))

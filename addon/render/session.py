@@ -14,6 +14,8 @@ import queue
 import statistics
 import threading
 import time
+from concurrent.futures import Future
+from concurrent.futures import TimeoutError as FutureTimeout
 
 import numpy as np
 
@@ -21,7 +23,7 @@ from . import techniques
 from .analysis import analyse
 from . import framegraph
 from .framegraph import CAMERA_CUT, SCENE_EDITS, FrameState, RenderContext
-from .gl import get_gl
+from .gl import PRIORITY_BACKGROUND, PRIORITY_INTERACTIVE, PRIORITY_NORMAL, get_gl
 from .gpu_scene import GPUScene, set_uniform
 from .result import RenderResult, SkippedPass
 from .scene_data import SceneData, SceneError
@@ -287,7 +289,9 @@ class Session:
         self.programs.release()
 
 
-def _get_session(key: str) -> Session:
+def _get_session(key) -> Session:
+    """The session named ``key`` (any hashable: ``"final"``, ``("viewport", region)``),
+    created on first use. GL thread only."""
     s = _sessions.get(key)
     if s is None:
         s = Session(get_gl().ctx)
@@ -302,46 +306,123 @@ def release_all():
     _sessions.clear()
 
 
+def _release_session(key) -> bool:
+    s = _sessions.pop(key, None)
+    if s is None:
+        return False
+    s.release()
+    return True
+
+
+def release_session(key) -> Future | None:
+    """Free the session ``key`` and its GL resources (a closed 3D view), after any render of
+    it still queued. Non-blocking: returns the Future (None when no GL thread runs)."""
+    from . import gl as _glmod
+
+    if _glmod._gl is None or not _glmod._gl._thread.is_alive():
+        return None
+    return _glmod._gl.submit_job(_release_session, (key,), key=key, priority=PRIORITY_BACKGROUND)
+
+
+def session_keys() -> list:
+    """The keys of the live sessions (read on the GL thread)."""
+    return get_gl().call(lambda: list(_sessions))
+
+
 def available_techniques():
     return techniques.available()
 
 
-def render(scene: SceneData, technique: str = "DIRECT", quality: int = 1, samples: int = 1, *,
-           progress=None, cancel=None, continue_accumulation: bool = False, keep_history: bool = False,
-           session: str = "final", poll_s: float = 0.05, **options) -> RenderResult:
-    """Render ``scene`` with a technique; blocks until done. Callable from any thread.
+class RenderFuture(Future):
+    """A render in flight (:func:`submit_render`): a ``concurrent.futures.Future`` whose
+    result is the RenderResult, plus ``cancel_event`` (set it to stop at the next frame) and
+    ``progress`` (the last fraction reported, updated from the GL thread)."""
 
-    progress: ``f(fraction)`` called on the calling thread. cancel: a ``threading.Event``
-    or a callable returning True to stop; checked between frames (a cancelled render returns
-    what has accumulated, with ``cancelled=True``; cancelled before the first frame raises
-    ``Cancelled``). options: passed to :meth:`Session.render_steps` (``camera_cut``, ``warmup``).
-    """
+    def __init__(self, cancel_event: threading.Event):
+        super().__init__()
+        self.cancel_event = cancel_event
+        self.progress = 0.0
+        self.submitted = time.perf_counter()
+
+
+def submit_render(scene: SceneData, technique: str = "DIRECT", quality: int = 1, samples: int = 1, *,
+                  cancel: threading.Event | None = None, continue_accumulation: bool = False,
+                  keep_history: bool = False, session="final", priority: int = PRIORITY_INTERACTIVE,
+                  on_done=None, **options) -> RenderFuture:
+    """Queue a render on the GL thread and return at once (the viewport's entry point).
+
+    The render runs as cooperative steps (one frame each, :meth:`Session.render_steps`): a
+    render of ``PRIORITY_INTERACTIVE`` (the default: viewport frames) is served before the
+    next frame of a longer job (an F12 accumulation, a sweep), so it waits for at most one
+    frame of them. Renders of one session run in submission order. ``on_done(future)`` is
+    called on the GL thread when the render ends (e.g. ``RenderEngine.tag_redraw``); the
+    result (or the exception: ``Cancelled``, ``SceneError``, ...) is in the future."""
     techniques.get(technique)  # unknown ids fail here, on the caller's thread
     gl = get_gl()
     stop = cancel if isinstance(cancel, threading.Event) else threading.Event()
-    prog_q: queue.Queue = queue.Queue()
+    out = RenderFuture(stop)
+
+    def progress(f):
+        out.progress = float(f)
 
     def job():
         sess = _get_session(session)
-        return sess.render(scene, technique, int(quality), int(samples), cancel=stop,
-                           progress=prog_q.put if progress else None,
-                           continue_accumulation=continue_accumulation, keep_history=keep_history, **options)
+        return sess.render_steps(scene, technique, int(quality), int(samples), cancel=stop, progress=progress,
+                                 continue_accumulation=continue_accumulation, keep_history=keep_history,
+                                 **options)
 
-    fut = gl.submit(job)
+    inner = gl.submit_job(job, priority=priority, key=("session", session))
+
+    def relay(f: Future):
+        try:
+            exc = f.exception()
+        except BaseException as e:  # noqa: BLE001 - cancelled inner future
+            exc = e
+        if exc is not None:
+            out.set_exception(exc)
+        else:
+            out.set_result(f.result())
+        if on_done is not None:
+            try:
+                on_done(out)
+            except Exception:  # noqa: BLE001 - a callback must not kill the GL thread
+                log.exception("GI Preview: render callback failed")
+
+    inner.add_done_callback(relay)
+    return out
+
+
+def render(scene: SceneData, technique: str = "DIRECT", quality: int = 1, samples: int = 1, *,
+           progress=None, cancel=None, continue_accumulation: bool = False, keep_history: bool = False,
+           session="final", poll_s: float = 0.05, priority: int = PRIORITY_NORMAL, **options) -> RenderResult:
+    """Render ``scene`` with a technique; blocks until done. Callable from any thread.
+
+    The GL thread runs it one frame at a time (see :func:`submit_render`), so viewport
+    frames and other sessions are served between its frames. progress: ``f(fraction)``
+    called on the calling thread. cancel: a ``threading.Event`` or a callable returning True
+    to stop; checked between frames (a cancelled render returns what has accumulated, with
+    ``cancelled=True``; cancelled before the first frame raises ``Cancelled``). options:
+    passed to :meth:`Session.render_steps` (``camera_cut``, ``warmup``).
+    """
+    stop = cancel if isinstance(cancel, threading.Event) else threading.Event()
+    prog_q: queue.Queue = queue.Queue()
+    fut = submit_render(scene, technique, quality, samples, cancel=stop, continue_accumulation=continue_accumulation,
+                        keep_history=keep_history, session=session, priority=priority, **options)
+    last = [0.0]
+
+    def relay_progress():
+        if progress and fut.progress != last[0]:
+            last[0] = fut.progress
+            progress(fut.progress)
+
     while True:
         try:
             result = fut.result(timeout=poll_s)
             break
-        except TimeoutError:
+        except FutureTimeout:
             pass
-        except Exception:
-            raise
         if callable(cancel) and not isinstance(cancel, threading.Event) and cancel():
             stop.set()
-        if progress:
-            while not prog_q.empty():
-                progress(prog_q.get_nowait())
-    if progress:
-        while not prog_q.empty():
-            progress(prog_q.get_nowait())
+        relay_progress()
+    relay_progress()
     return result
