@@ -124,6 +124,13 @@ def _radiance_bound(sd) -> float:
     return 100.0 * max(b, 1.0)
 
 
+@pytest.fixture(autouse=True)
+def validate_passes(monkeypatch):
+    """Every pass output is checked for NaN, Inf and negative radiance as it is written
+    (framegraph's GI_PREVIEW_VALIDATE): a bad value fails the test naming pass and resource."""
+    monkeypatch.setenv("GI_PREVIEW_VALIDATE", "1")
+
+
 @pytest.mark.parametrize("case", CASES)
 def test_hard_case_is_finite_and_bounded(case):
     sc, _ = _scene(case)

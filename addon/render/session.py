@@ -131,7 +131,8 @@ class Session:
         otherwise this render starts with a camera cut. Scene edits since the last call
         (lights, materials, geometry, transforms, textures) reset the history of the passes
         that declare them. warmup: run the graph's warm-up frames before accumulating (default:
-        when the history was just reset and the accumulation starts fresh, i.e. F12)."""
+        for a fresh render that keeps no history, i.e. F12; the first frame of an animation
+        asks for it explicitly; the viewport shows the convergence instead)."""
         validate_scene(scene)
         t_start = time.perf_counter()
         setup0 = self._setup_clock()
@@ -168,7 +169,7 @@ class Session:
         written = {w for p in plan.active for w in p.writes}
         outputs = {aov: r for aov, r in {"Combined": "color", **tech.outputs}.items() if r in written}
         n_warm = 0
-        if warmup if warmup is not None else (fresh and cut):
+        if warmup if warmup is not None else (fresh and not keep_history):
             n_warm = max(int(getattr(tech, "warmup_frames", 0) or 0), graph.warmup_frames())
         setup_ms = (time.perf_counter() - t_start) * 1e3
         frame_times, pass_ms = [], {}

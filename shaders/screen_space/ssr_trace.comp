@@ -64,7 +64,7 @@ void main() {
         imageStore(o_ray0, q, vec4(L, 0.0));
         return;
     }
-    imageStore(o_ray0, q, vec4(L, pdf));
+    imageStore(o_ray0, q, vec4(L, min(pdf, FLT_MAX)));  // a near-mirror's pdf overflows: keep it finite
     // ---- the ray as a screen-space segment
     vec3 O = g.P + g.Ng * u_bias;
     float dO = view_depth(O);

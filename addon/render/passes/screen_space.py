@@ -285,7 +285,8 @@ class CompositePass(ScreenPass):
         self.reads = tuple(reads)
         self.effect_output = f"{self.name}.effect"  # what this pass adds: the effect's render pass
         self.writes = (COLOR, self.effect_output) + ((ao_output,) if ao_output else ())
-        self.declared = (Res(self.effect_output, check="radiance"),) + (
+        # SSR's effect replaces DIRECT's world reflection: a signed difference
+        self.declared = (Res(self.effect_output, check="finite" if mode == "SSR" else "radiance"),) + (
             (Res(ao_output, check="radiance"),) if ao_output else ())
         self.history_resets = frozenset()
 
