@@ -155,6 +155,10 @@ def test_speedup_outside_curve_is_none():
     assert above["speedup"] is None and "above" in above["reason"]
     bad = sweep.equal_error_speedup(float("nan"), 1.0, _cycles_curve())
     assert bad["speedup"] is None
+    # bounds: Cycles at 1 spp (10 ms) is already better -> at most 10/1 = 10x;
+    # better than 32 spp (320 ms) -> at least 320/1 = 320x
+    assert above["bound"] == {"at_most": pytest.approx(10.0)}
+    assert below["bound"] == {"at_least": pytest.approx(320.0)}
 
 
 def test_speedup_non_monotone_curve():
@@ -175,3 +179,81 @@ def test_chart_svg(tmp_path):
     assert svg.startswith("<svg") and "DIRECT q0" in svg and "Cycles" in svg
     path = sweep.write_chart(points, _cycles_curve(), str(tmp_path / "chart"), metric="relMSE")
     assert os.path.exists(path["svg"])
+
+
+# ---------------------------------------------------------------- setup vs per-frame time
+def test_fit_setup_recovers_setup_and_per_sample():
+    pts = [(s, 150.0 + 12.5 * s) for s in (1, 2, 4, 8, 16)]
+    f = sweep.fit_setup(pts)
+    assert f["ok"] and f["n"] == 5
+    assert f["setup_ms"] == pytest.approx(150.0, rel=1e-9)
+    assert f["per_sample_ms"] == pytest.approx(12.5, rel=1e-9)
+    assert f["max_rel_residual"] < 1e-9
+
+
+def test_fit_setup_noisy_and_clamped():
+    # +-5 % noise: setup and per-sample within 20 % of the truth
+    rng = np.random.default_rng(3)
+    pts = [(s, (300.0 + 40.0 * s) * (1 + 0.05 * rng.uniform(-1, 1))) for s in (1, 2, 4, 8, 16, 32)]
+    f = sweep.fit_setup(pts)
+    assert f["ok"]
+    assert f["setup_ms"] == pytest.approx(300.0, rel=0.2)
+    assert f["per_sample_ms"] == pytest.approx(40.0, rel=0.2)
+    # pure per-sample cost (no setup): the intercept is clamped at 0, never negative
+    f = sweep.fit_setup([(1, 9.0), (2, 21.0), (4, 40.0), (8, 82.0)])
+    assert f["ok"] and f["setup_ms"] >= 0.0 and f["per_sample_ms"] == pytest.approx(10.0, rel=0.1)
+    # the setup never exceeds the cheapest render
+    f = sweep.fit_setup([(1, 100.0), (2, 100.5), (4, 101.0)])
+    assert 0.0 <= f["setup_ms"] <= 100.0
+
+
+def test_fit_setup_degenerate():
+    one = sweep.fit_setup([(4, 100.0)])
+    assert not one["ok"] and one["setup_ms"] == 0.0 and one["per_sample_ms"] == pytest.approx(25.0)
+    flat = sweep.fit_setup([(1, 100.0), (2, 90.0), (4, 80.0)])  # times fall with spp: no split
+    assert not flat["ok"] and flat["setup_ms"] == 0.0 and "grow" in flat["reason"]
+    assert not sweep.fit_setup([])["ok"]
+
+
+def test_speedup_names_the_baseline():
+    s = sweep.equal_error_speedup(5.0, 1.0, _cycles_curve(), name="EEVEE (ray tracing)")
+    assert s["speedup"] is None and "EEVEE (ray tracing)" in s["reason"]
+    s = sweep.equal_error_speedup(0.25, 2.0, _cycles_curve(), name="EEVEE (ray tracing)")
+    assert s["speedup"] == pytest.approx(20.0) and "EEVEE" in s["reason"]
+
+
+def test_chart_every_baseline(tmp_path):
+    points = [{"technique": "SSDO", "quality": 1, "time_ms": 3.0, "error": 0.2}]
+    curves = {"Cycles (spp)": _cycles_curve(),
+              "Cycles + OIDN (spp)": [(1, 30.0, 0.3), (4, 60.0, 0.05)],
+              "EEVEE ray tracing (samples)": [(1, 400.0, 0.4), (8, 900.0, 0.2)]}
+    svg = sweep.chart_svg(points, curves)
+    for label in curves:
+        assert label in svg
+    # three curves: three stroked paths with three different styles (solid, dashed, dotted)
+    assert svg.count('stroke-width="2"') >= 3
+    assert 'stroke-dasharray="7 3"' in svg and 'stroke-dasharray="2 3"' in svg
+    out = sweep.write_chart(points, curves, str(tmp_path / "c"))
+    assert os.path.exists(out["svg"])
+
+
+def test_report_speedup_table_per_baseline():
+    from gi_preview.compare import report
+    sp = {"cycles": {"speedup": 2.0, "cycles_spp": 4.0, "reason": "interpolated"},
+          "cycles_denoised": {"speedup": None, "reason": "error above Cycles + OpenImageDenoise's curve",
+                              "bound": {"at_most": 0.75}},
+          "eevee": {"speedup": 0.5, "cycles_spp": 2.0, "reason": "interpolated"}}
+    results = {"reference": {"kind": "full", "spp": 64},
+               "entries": [{"technique": "SSDO", "quality": 1, "reference": "full", "time_ms": 5.0,
+                            "setup_ms": 1234.0, "relmse": 0.1, "speedup": sp["cycles"], "speedups": sp}],
+               "baselines": {"cycles": [{"spp": 1, "time_ms": 1.0, "wall_ms": 2.0, "relmse": 0.5}],
+                             "cycles_denoised": [{"spp": 1, "time_ms": 3.0, "wall_ms": 4.0, "relmse": 0.05}],
+                             "eevee": [{"spp": 1, "time_ms": 5.0, "wall_ms": 9.0, "relmse": 0.2}]},
+               "baselines_setup": {"eevee": {"setup_ms": 4.0, "per_sample_ms": 5.0, "first_render_extra_ms": 30000}}}
+    h = report.build_html(title="t", results=results)
+    assert "Equal-error speed-ups" in h
+    for label in ("vs Cycles<", "vs Cycles + OpenImageDenoise", "vs EEVEE (ray tracing)"):
+        assert label in h, label
+    assert "2&times;" in h and "0.5&times;" in h and "&le;&thinsp;0.75&times;" in h
+    assert ">1234<" in h  # the setup column
+    assert "first render +30000 ms" in h

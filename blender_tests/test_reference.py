@@ -182,3 +182,83 @@ def test_cache_roundtrip(tmp_path):
             C.reference_key("fp", "full", 16, {"max_bounces": 12}, (9, 6), 1, (5, 0, 1)),
             C.reference_key("fp", "full", 16, {"max_bounces": 12}, (9, 6), 0, (5, 0, 2))}
     assert len(keys) == 7
+
+
+# ---------------------------------------------------------------- baselines
+def _baseline_paths(scene):
+    """Every path a baseline may touch: the reference's, the denoiser's and EEVEE's."""
+    p = _paths(scene, "full")
+    p += [path for path, _ in R.denoise_settings(scene)]
+    p += [path for path, _ in R.eevee_settings(scene, 1)]
+    return sorted(set(p))
+
+
+def test_denoised_baseline_restores_and_denoises(scene, tmp_path):
+    """Cycles + OpenImageDenoise: settings put back, and at 2 spp it is much closer to a
+    converged reference than plain Cycles at 2 spp (what the denoiser is for)."""
+    scene.cycles.denoiser = "OPENIMAGEDENOISE"
+    scene.cycles.denoising_input_passes = "RGB"  # a user setting the baseline must restore
+    paths = _baseline_paths(scene)
+    before = _snapshot(scene, paths)
+    log = []
+    den, ms = R.render_cycles(scene, 2, "full", seed=5, denoise=True, guard_log=log)
+    assert set(log) <= set(paths)
+    assert {"cycles.use_denoising", "cycles.denoising_input_passes"} <= set(log)
+    assert _snapshot(scene, paths) == before
+    assert den.shape == (32, 32, 4) and np.isfinite(den).all() and ms > 0
+    plain, _ = R.render_cycles(scene, 2, "full", seed=5)
+    ref = R.get_reference(scene, "full", 256, cache_dir=str(tmp_path))
+    from gi_preview.compare import metrics as M
+    e_den, e_plain = M.relmse(den, ref.image), M.relmse(plain, ref.image)
+    print(f"relMSE at 2 spp: denoised {e_den:.4g}, plain {e_plain:.4g}")
+    assert e_den < 0.5 * e_plain, (e_den, e_plain)
+    with pytest.raises(ValueError, match="ao"):
+        R.render_cycles(scene, 2, "ao", denoise=True)
+
+
+def test_eevee_baseline_restores_settings(scene):
+    """EEVEE with ray tracing: the engine, samples and ray-tracing options are the scene's
+    again afterwards (the fixture's engine is EEVEE with ray tracing off), and the image is
+    finite and lit like Cycles' (mean within a factor 2: EEVEE approximates the bounce)."""
+    scene.eevee.use_raytracing = False
+    scene.eevee.taa_render_samples = 7
+    paths = _baseline_paths(scene)
+    before = _snapshot(scene, paths)
+    log = []
+    img, ms = R.render_eevee(scene, 2, guard_log=log)
+    assert {"render.engine", "eevee.use_raytracing", "eevee.taa_render_samples"} <= set(log)
+    assert set(log) <= set(paths)
+    after = _snapshot(scene, paths)
+    assert after == before, {k: (before[k], after[k]) for k in paths if before[k] != after[k]}
+    assert scene.render.engine == "BLENDER_EEVEE" and not scene.eevee.use_raytracing
+    assert scene.eevee.taa_render_samples == 7
+    assert img.shape == (32, 32, 4) and np.isfinite(img).all() and ms > 0
+    cyc, _ = R.render_cycles(scene, 64, "full")
+    m_e, m_c = float(img[..., :3].mean()), float(cyc[..., :3].mean())
+    print(f"mean radiance: EEVEE {m_e:.4g}, Cycles {m_c:.4g}")
+    assert 0.5 * m_c < m_e < 2.0 * m_c
+
+
+def test_baseline_curve_splits_setup(scene, tmp_path):
+    """The Cycles curve's wall times are split into setup + per-sample; every point's
+    time_ms is the wall time without the setup, errors fall with spp."""
+    ref = R.get_reference(scene, "full", 128, cache_dir=str(tmp_path))
+    bc = R.baseline_curve(scene, "cycles", [1, 4, 16], ref)
+    pts = bc["points"]
+    assert [p["spp"] for p in pts] == [1, 4, 16]
+    assert bc["warmup_renders"] == 1 and bc["warmup_ms"] > 0
+    assert 0.0 <= bc["setup_ms"] <= min(p["wall_ms"] for p in pts)
+    for p in pts:
+        assert p["setup_ms"] == bc["setup_ms"]
+        assert 0 < p["time_ms"] <= p["wall_ms"] * 1.5
+        if bc["fit"]["ok"]:
+            assert p["time_ms"] == pytest.approx(bc["per_sample_ms"] * p["spp"])
+    assert pts[0]["relmse"] > pts[-1]["relmse"]
+    # the denoised curve keeps the denoiser's fixed cost in time_ms: the setup passed in
+    # (Cycles' own) is what is subtracted
+    dn = R.baseline_curve(scene, "cycles_denoised", [1, 2], ref, setup_ms=bc["setup_ms"])
+    assert dn["setup_ms"] == pytest.approx(min(bc["setup_ms"], min(p["wall_ms"] for p in dn["points"])))
+    with pytest.raises(ValueError, match="full"):
+        R.render_baseline(scene, "eevee", 1, kind="direct")
+    with pytest.raises(ValueError, match="unknown baseline"):
+        R.render_baseline(scene, "unbiased", 1)

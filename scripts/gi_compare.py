@@ -17,6 +17,13 @@ ARGS
                         render (time_ms = median frame time x samples; default 3)
   --samples N           accumulation samples for techniques that converge (default 1)
   --cycles-curve LIST   Cycles spp list for its own error/time curve (default 1,2,4,...,ref-spp/4)
+  --baselines LIST      what a user would pick instead, measured in the same run against the
+                        'full' reference: any of cycles, cycles_denoised, eevee, or none
+                        (default cycles,cycles_denoised,eevee; 'cycles' is always measured)
+  --denoised-curve LIST spp list for Cycles + OpenImageDenoise (default: the Cycles list)
+  --eevee-samples LIST  EEVEE sample counts (default 1,2,4,8); EEVEE's first render in a
+                        process compiles its shaders (about 40 s on llvmpipe): reported as
+                        setup, never as per-frame time
   --reference KIND      full | direct | one_bounce | ao | auto (default auto: each technique
                         against the reference it models, and also against full)
   --seed N              reference seed (default 0)
@@ -24,6 +31,12 @@ ARGS
   --cache DIR           reference cache folder (default: the user cache)
   --no-cache            always re-render the references
   --use-installed       use the installed extension even when run from a checkout
+
+Timing: a technique's ``time_ms`` is its per-frame time x samples; its one-time setup
+(scene export, GPU upload, BVH build, shader compilation) is ``setup_ms``, measured apart.
+The baselines' wall times are split the same way: ``wall = setup + per_sample x spp``
+fitted over each curve; each point's ``time_ms`` leaves the setup out (``wall_ms`` keeps
+the raw wall time). Equal-error speed-ups are given against every baseline.
 
 Writes into DIR: per technique and quality ``<TECH>_q<Q>.exr`` (linear), ``.png`` (sRGB
 "Standard" view), ``<TECH>_q<Q>_vs_<kind>_error.png`` (relMSE heat map); ``reference_<kind>``
@@ -46,6 +59,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 DEMOS = ("cornell", "glossy_spheres", "sunlit_room", "emissive_panel", "many_lights")
 REF_KINDS = ("full", "direct", "one_bounce", "ao")
+BASELINES = ("cycles", "cycles_denoised", "eevee")
 
 
 def log(msg: str):
@@ -81,6 +95,9 @@ def parse_args(argv: list[str], scene_optional: bool):
     p.add_argument("--frames", type=int, default=3)
     p.add_argument("--samples", type=int, default=1)
     p.add_argument("--cycles-curve", default="")
+    p.add_argument("--baselines", default="cycles,cycles_denoised,eevee")
+    p.add_argument("--denoised-curve", default="")
+    p.add_argument("--eevee-samples", default="1,2,4,8")
     p.add_argument("--reference", default="auto", choices=REF_KINDS + ("auto",))
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--out", default="gi_compare_out")
@@ -90,13 +107,28 @@ def parse_args(argv: list[str], scene_optional: bool):
     a = p.parse_args(argv)
     if a.ref_spp < 1 or a.frames < 1 or a.samples < 1:
         p.error("--ref-spp, --frames and --samples must be >= 1")
+    def spp_list(text, name):
+        try:
+            v = sorted({int(x) for x in text.split(",") if x.strip()})
+        except ValueError:
+            p.error(f"{name} must be a comma-separated list of sample counts, got {text!r}")
+        if not v or v[0] < 1:
+            p.error(f"{name} must hold sample counts >= 1, got {text!r}")
+        return v
     if a.cycles_curve:
-        a.curve = sorted({int(x) for x in a.cycles_curve.split(",") if x.strip()})
+        a.curve = spp_list(a.cycles_curve, "--cycles-curve")
     else:
         a.curve, s = [], 1
         while s <= max(1, a.ref_spp // 4):
             a.curve.append(s)
             s *= 2
+    a.denoised_curve = spp_list(a.denoised_curve, "--denoised-curve") if a.denoised_curve else list(a.curve)
+    a.eevee_samples = spp_list(a.eevee_samples, "--eevee-samples")
+    names = [b.strip() for b in a.baselines.split(",") if b.strip() and b.strip() != "none"]
+    bad = [b for b in names if b not in BASELINES]
+    if bad:
+        p.error(f"--baselines: unknown {', '.join(bad)}; choose from {', '.join(BASELINES)} or none")
+    a.baselines = ["cycles"] + [b for b in BASELINES[1:] if b in names]
     return a
 
 
@@ -142,6 +174,18 @@ def _clean_json(o):
         except (ValueError, TypeError):
             pass
     return o
+
+
+def _speedup_text(s: dict) -> str:
+    """"2.3x", "<=0.8x" / ">=12x" (outside the baseline's curve: a bound), or "n/a"."""
+    if s.get("speedup") is not None:
+        return f"{s['speedup']:.3g}x"
+    b = s.get("bound") or {}
+    if b.get("at_most") is not None:
+        return f"<={b['at_most']:.3g}x"
+    if b.get("at_least") is not None:
+        return f">={b['at_least']:.3g}x"
+    return "n/a"
 
 
 def _load_scene(bpy, name_or_path: str | None, demo_scenes):
@@ -192,6 +236,9 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
     os.makedirs(out, exist_ok=True)
     w, h = _resolution(scene, opts.res)
     log(f"scene '{scene.name}' at {w}x{h}, output {out}")
+    # OpenGL 4.3 first: without it nothing of ours can render, so fail before any Cycles work
+    gl = importlib.import_module(pn + ".render.gl")
+    log(f"OpenGL: {gl.get_gl().info.get('GL_RENDERER')} ({gl.get_gl().info.get('GL_VERSION')})")
 
     # ---- techniques and quality levels
     infos = {t.id: t for t in session.available_techniques()}
@@ -212,10 +259,13 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
     if not plan:
         raise SystemExit("gi_compare: nothing to render (check --techniques/--quality)")
 
-    # ---- export once (the fingerprint keys the reference cache)
+    # ---- export once (the fingerprint keys the reference cache); its time is setup
+    t0 = time.perf_counter()
     dg = reference.evaluated_depsgraph(scene)
     sd = export.export_scene(dg, width=w, height=h)
+    export_ms = (time.perf_counter() - t0) * 1e3
     fp = sd.fingerprint()
+    log(f"exported the scene in {export_ms:.0f} ms")
 
     # ---- which references
     def kinds_for(tech):
@@ -230,7 +280,14 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
                 kinds.append(k)
     primary = "full" if "full" in kinds else kinds[0]
 
-    refs, curves = {}, {}
+    def strip(points):
+        return [{k: v for k, v in c.items() if k != "image"} for c in points]
+
+    def progress(name):
+        return lambda i, n, spp, ms: log(f"  {name} {spp:>5} spp: {ms:8.0f} ms wall ({i}/{n})")
+
+    refs, curves, curve_info = {}, {}, {}
+    baselines, baseline_info, baseline_images = {}, {}, {}
     cache_dir = opts.cache
     for k in kinds:
         log(f"Cycles reference '{k}' at {opts.ref_spp} spp ...")
@@ -241,25 +298,67 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
         imageio.write_exr(os.path.join(out, f"reference_{k}.exr"), r.image)
         imageio.write_png(os.path.join(out, f"reference_{k}.png"), metrics.view_standard(r.image))
         log(f"Cycles curve '{k}' at {opts.curve} spp ...")
-        cur = reference.cycles_curve(
-            scene, opts.curve, r, seed=opts.seed + 1,
-            progress=lambda i, n, spp, ms: log(f"  {spp:>5} spp: {ms:8.0f} ms ({i}/{n})"))
-        curves[k] = [{"spp": c["spp"], "time_ms": c["time_ms"], "relmse": c["relmse"], "flip": c["flip"],
-                      "ssim": c["ssim"]} for c in cur]
+        bc = reference.baseline_curve(scene, "cycles", opts.curve, r, seed=opts.seed + 1,
+                                      progress=progress("Cycles"))
+        log(f"  setup {bc['setup_ms']:.0f} ms + {bc['per_sample_ms']:.2f} ms/spp")
+        curves[k] = strip(bc["points"])
+        curve_info[k] = {key: v for key, v in bc.items() if key != "points"}
+        if k == primary:
+            baselines["cycles"] = curves[k]
+            baseline_info["cycles"] = curve_info[k]
+            baseline_images["cycles"] = bc["points"][-1]["image"]
+    # ---- the other baselines, against the primary reference
+    if primary == "full":
+        cyc_setup = baseline_info["cycles"]["setup_ms"]
+        for name in opts.baselines[1:]:
+            spps = opts.denoised_curve if name == "cycles_denoised" else opts.eevee_samples
+            log(f"{reference.BASELINE_LABELS[name]} at {spps} samples (untimed warm-up first) ...")
+            bc = reference.baseline_curve(scene, name, spps, refs[primary], seed=opts.seed + 1,
+                                          setup_ms=cyc_setup if name == "cycles_denoised" else None,
+                                          progress=progress(name))
+            extra = bc["first_render_extra_ms"]
+            log(f"  setup {bc['setup_ms']:.0f} ms + {bc['per_sample_ms']:.2f} ms/sample"
+                + (f"; first render +{extra:.0f} ms (warm-up)" if extra is not None else ""))
+            baselines[name] = strip(bc["points"])
+            baseline_info[name] = {key: v for key, v in bc.items() if key != "points"}
+            baseline_images[name] = bc["points"][-1]["image"]
+    elif len(opts.baselines) > 1:
+        log(f"baselines {', '.join(opts.baselines[1:])} need the 'full' reference (--reference "
+            f"{opts.reference}): not measured")
+
+    def baseline_curves_for(k):
+        """{baseline name: [(spp, time_ms, relmse)]} for entries measured against kind k."""
+        if k != primary:
+            return {"cycles": [(c["spp"], c["time_ms"], c["relmse"]) for c in curves[k]]}
+        return {b: [(c["spp"], c["time_ms"], c["relmse"]) for c in pts] for b, pts in baselines.items()}
 
     # ---- techniques
+    gl_call = gl.get_gl().call
     entries, images = [], {}
     for i, (tech, q) in enumerate(plan):
         log(f"[{i + 1}/{len(plan)}] {tech} q{q}: {opts.frames} render(s) of {opts.samples} sample(s) ...")
-        # one untimed warm-up render (shader compilation, GPU scene upload), then the timed ones
-        session.render(sd, technique=tech, quality=q, samples=opts.samples)
+        # a fresh GPU session per row, so every row pays (and reports) its own one-time setup:
+        # GPU upload, BVH build, shader compilation; then one untimed warm-up render and the
+        # timed ones (time_ms never includes setup)
+        gl_call(session.release_all)
+        t0 = time.perf_counter()
+        warm = session.render(sd, technique=tech, quality=q, samples=opts.samples)
+        warm_ms = (time.perf_counter() - t0) * 1e3
         results = []
         for _ in range(opts.frames):
             results.append(session.render(sd, technique=tech, quality=q, samples=opts.samples))
         res = results[-1]
         frame_ms = statistics.median(float(r.frame_ms) for r in results)
         total_ms = statistics.median(float(r.total_ms) for r in results)
-        time_ms = frame_ms * max(1, int(getattr(res, "samples", opts.samples) or 1))
+        n_samples = max(1, int(getattr(res, "samples", opts.samples) or 1))
+        time_ms = frame_ms * n_samples
+        renderer_setup = getattr(warm, "setup_ms", None)
+        if renderer_setup is not None:
+            setup_source = "RenderResult.setup_ms of the first render"
+        else:  # renderer without its own setup timer: the first render's excess over a timed one
+            renderer_setup = max(0.0, warm_ms - total_ms)
+            setup_source = "first render's wall time minus a later render's"
+        setup_ms = export_ms + float(renderer_setup)
         img = np.asarray(res.image, np.float32)
         base = f"{tech}_q{q}"
         imageio.write_exr(os.path.join(out, base + ".exr"), img)
@@ -281,10 +380,14 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
             heat, legend = metrics.heatmap(img, ref.image)
             epath = os.path.join(out, f"{base}_vs_{k}_error.png")
             imageio.write_png(epath, heat)
-            sp = sweep.equal_error_speedup(m["relmse"], time_ms, [(c["spp"], c["time_ms"], c["relmse"])
-                                                                   for c in curves[k]])
+            sps = {b: sweep.equal_error_speedup(m["relmse"], time_ms, cur,
+                                                name=reference.BASELINE_LABELS[b])
+                   for b, cur in baseline_curves_for(k).items()}
             e = {"technique": tech, "quality": q, "reference": k, "time_ms": time_ms,
                  "frame_ms": frame_ms, "total_ms": total_ms, "samples": int(getattr(res, "samples", 1)),
+                 "setup_ms": setup_ms,
+                 "setup": {"export_ms": export_ms, "renderer_ms": float(renderer_setup),
+                           "first_render_ms": warm_ms, "source": setup_source},
                  "relmse": m["relmse"], "flip": m["flip"], "flip_ldr": m["flip_ldr"], "ssim": m["ssim"],
                  "psnr": m["psnr"], "nonfinite_pixels": m["nonfinite_pixels"],
                  "effects": list(getattr(res, "effects", []) or []),
@@ -292,44 +395,56 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
                                     for s in (getattr(res, "skipped_passes", []) or [])],
                  "effect_errors": m.get("effects", {}),
                  "warnings": list(getattr(res, "warnings", []) or []),
-                 "speedup": sp,
+                 "speedup": sps["cycles"],
+                 "speedups": sps,
                  "files": {"exr": base + ".exr", "png": base + ".png", "error_png": os.path.basename(epath)}}
             entries.append(e)
             images[report.entry_id(tech, q, k)] = {"ours": ours_png,
                                                    "cycles": imageio.png_bytes(metrics.view_standard(ref.image)),
                                                    "error": imageio.png_bytes(heat)}
-            sps = f"{sp['speedup']:.3g}x" if sp["speedup"] is not None else "n/a"
-            log(f"  vs {k}: {time_ms:.2f} ms  relMSE {m['relmse']:.4g}  FLIP {m['flip']:.4g}  "
-                f"SSIM {m['ssim']:.4f}  speed-up {sps}")
+            spt = "  ".join(f"{b} {_speedup_text(v)}" for b, v in sps.items())
+            log(f"  vs {k}: {time_ms:.2f} ms (+ setup {setup_ms:.0f} ms)  relMSE {m['relmse']:.4g}  "
+                f"FLIP {m['flip']:.4g}  SSIM {m['ssim']:.4f}  speed-up: {spt}")
+    gl_call(session.release_all)
 
-    # ---- chart(s)
+    # ---- chart(s): the primary one carries every baseline
     charts = {}
     for k in kinds:
         pts = [{"technique": e["technique"], "quality": e["quality"], "time_ms": e["time_ms"],
                 "error": e["relmse"]} for e in entries if e["reference"] == k]
         base = os.path.join(out, "chart" if k == primary else f"chart_{k}")
-        c = sweep.write_chart(pts, [(c["spp"], c["time_ms"], c["relmse"]) for c in curves[k]], base,
-                              metric="relMSE", title=f"{scene.name}: cost vs accuracy against Cycles '{k}' "
-                                                     f"({opts.ref_spp} spp)")
+        labels = {"cycles": "Cycles (spp)", "cycles_denoised": "Cycles + OIDN (spp)",
+                  "eevee": "EEVEE ray tracing (samples)"}
+        cur = {labels[b]: c for b, c in baseline_curves_for(k).items()}
+        c = sweep.write_chart(pts, cur, base, metric="relMSE",
+                              title=f"{scene.name}: cost vs accuracy against Cycles '{k}' ({opts.ref_spp} spp)")
         charts[k] = c
         if c["png"] is None and k == primary:
             log("matplotlib is not importable: chart written as SVG only")
 
     import bpy as _b
+    speedups = [{"technique": e["technique"], "quality": e["quality"], "reference": e["reference"],
+                 "baseline": b, **v} for e in entries for b, v in e["speedups"].items()]
     results = {
         "scene": scene.name, "resolution": [w, h], "fingerprint": fp,
         "run": {"date": datetime.datetime.now().isoformat(timespec="seconds"),
                 "blender": _b.app.version_string, "frames": opts.frames, "samples": opts.samples,
-                "ref_spp": opts.ref_spp, "reference_mode": opts.reference, "resolution": f"{w}x{h}"},
+                "ref_spp": opts.ref_spp, "reference_mode": opts.reference, "resolution": f"{w}x{h}",
+                "baselines": ",".join(baselines)},
         "reference": {**refs[primary].info()},
         "references": {k: r.info() for k, r in refs.items()},
         "reference_settings": getattr(reference, "FAIR_SETTINGS_SUMMARY", ""),
+        "export_ms": export_ms,
+        "baselines": baselines,
+        "baselines_setup": baseline_info,
         "cycles_curve": curves[primary],
         "cycles_curves": curves,
+        "cycles_curves_setup": curve_info,
         "entries": entries,
         "results": entries,
         "speedup": [{"technique": e["technique"], "quality": e["quality"], "reference": e["reference"],
                      **e["speedup"]} for e in entries],
+        "speedups": speedups,
         "charts": {k: {"svg": os.path.basename(c["svg"]), "png": c["png"] and os.path.basename(c["png"])}
                    for k, c in charts.items()},
     }
@@ -338,6 +453,10 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
         json.dump(results, f, indent=1)
     for k, r in refs.items():
         images[f"reference:{k}"] = imageio.png_bytes(metrics.view_standard(r.image))
+    for b, img in baseline_images.items():
+        spp = baselines[b][-1]["spp"]
+        images[f"baseline:{b}"] = imageio.png_bytes(metrics.view_standard(img))
+        imageio.write_png(os.path.join(out, f"baseline_{b}_{spp}spp.png"), metrics.view_standard(img))
     chart_html = "\n".join(charts[k]["svg_text"] for k in ([primary] + [k for k in kinds if k != primary]))
     _, legend = metrics.heatmap(np.zeros((1, 1, 3)), np.zeros((1, 1, 3)))
     report.write_html(os.path.join(out, "report.html"),
@@ -355,7 +474,13 @@ def main():
         import bpy  # noqa: F401
     except ImportError:
         raise SystemExit("gi_compare: needs Blender (blender -b -P) or the bpy module (pip install bpy)")
-    run(opts)
+    try:
+        run(opts)
+    except Exception as exc:  # GLUnavailableError: one clear line, not a traceback
+        if type(exc).__name__ != "GLUnavailableError":
+            raise
+        print(f"gi_compare: {exc}", file=sys.stderr, flush=True)
+        raise SystemExit(2) from None
 
 
 if __name__ == "__main__":

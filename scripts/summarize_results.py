@@ -1,16 +1,23 @@
-"""Markdown table of one or more gi_compare runs (results.json), for the docs pages.
+"""Markdown tables of one or more gi_compare runs (results.json), for the docs pages.
 
     python scripts/summarize_results.py docs/results/direct/*/results.json > docs/results/direct/summary.md
 
-Columns: scene, technique, quality, reference, samples, ms per frame, time of the
-accumulated image, relMSE, FLIP, SSIM, and the equal-error speed-up against Cycles' curve
-measured in the same run (on llvmpipe: a ratio, not a GPU timing).
+First table, per technique, quality and reference: samples, ms per frame, time of the
+accumulated image, one-time setup (export, GPU upload, BVH, shader compilation; never in
+the per-frame time), relMSE, FLIP, SSIM, and the equal-error speed-up against each baseline
+measured in the same run (Cycles, Cycles + OpenImageDenoise, EEVEE; on llvmpipe: ratios,
+not GPU timings; "≤x"/"≥x" where the technique's error is outside the baseline's curve).
+Second table: the baselines' own curves (spp, ms per frame without setup, wall ms, errors)
+and their setup.
 """
 from __future__ import annotations
 
 import json
 import sys
 from pathlib import Path
+
+BASELINES = ("cycles", "cycles_denoised", "eevee")
+LABELS = {"cycles": "Cycles", "cycles_denoised": "Cycles + OIDN", "eevee": "EEVEE"}
 
 
 def fmt(v, f="{:.4g}"):
@@ -22,20 +29,54 @@ def fmt(v, f="{:.4g}"):
         return str(v)
 
 
+def speedup_text(s: dict | None) -> str:
+    s = s or {}
+    if s.get("speedup") is not None:
+        return f"{s['speedup']:.3g}×"
+    b = s.get("bound") or {}
+    if b.get("at_most") is not None:
+        return f"≤{b['at_most']:.3g}×"
+    if b.get("at_least") is not None:
+        return f"≥{b['at_least']:.3g}×"
+    return "n/a"
+
+
 def main(paths: list[str]) -> str:
-    rows = ["| scene | technique | q | reference | samples | ms/frame | ms total | relMSE | FLIP | SSIM | "
-            "equal-error speed-up |", "|---|---|---|---|---|---|---|---|---|---|---|"]
-    for p in paths:
-        d = json.loads(Path(p).read_text())
+    runs = [(p, json.loads(Path(p).read_text())) for p in paths]
+    names = [b for b in BASELINES if any(b in (d.get("baselines") or {}) for _, d in runs)] or ["cycles"]
+    head = ("| scene | technique | q | reference | samples | ms/frame | ms total | setup ms | relMSE | FLIP | SSIM | "
+            + " | ".join(f"speed-up vs {LABELS[b]}" for b in names) + " |")
+    rows = [head, "|" + "---|" * (11 + len(names))]
+    for p, d in runs:
         scene = d.get("scene", {})
         name = scene.get("name", Path(p).parent.name) if isinstance(scene, dict) else str(scene)
         for e in d["entries"]:
-            sp = (e.get("speedup") or {}).get("speedup")
+            sps = e.get("speedups") or {"cycles": e.get("speedup")}
+            cells = " | ".join(speedup_text(sps.get(b)) if b in sps else "–" for b in names)
             rows.append(f"| {name} | {e['technique']} | {e['quality']} | {e['reference']} | {e['samples']} | "
-                        f"{fmt(e['frame_ms'], '{:.1f}')} | {fmt(e['time_ms'], '{:.0f}')} | {fmt(e['relmse'])} | "
-                        f"{fmt(e['flip'], '{:.3f}')} | {fmt(e['ssim'], '{:.4f}')} | "
-                        f"{fmt(sp, '{:.3g}×') if sp is not None else 'n/a'} |")
-    return "\n".join(rows) + "\n"
+                        f"{fmt(e['frame_ms'], '{:.1f}')} | {fmt(e['time_ms'], '{:.0f}')} | "
+                        f"{fmt(e.get('setup_ms'), '{:.0f}')} | {fmt(e['relmse'])} | "
+                        f"{fmt(e['flip'], '{:.3f}')} | {fmt(e['ssim'], '{:.4f}')} | {cells} |")
+    out = "\n".join(rows) + "\n"
+    brows = ["| scene | baseline | spp | ms/frame | wall ms | relMSE | FLIP | SSIM |", "|---|---|---|---|---|---|---|---|"]
+    notes = []
+    for p, d in runs:
+        scene = d.get("scene", {})
+        name = scene.get("name", Path(p).parent.name) if isinstance(scene, dict) else str(scene)
+        for b, pts in (d.get("baselines") or {}).items():
+            info = (d.get("baselines_setup") or {}).get(b) or {}
+            extra = info.get("first_render_extra_ms")
+            notes.append(f"- {name}, {LABELS.get(b, b)}: setup {fmt(info.get('setup_ms'), '{:.0f}')} ms, "
+                         f"{fmt(info.get('per_sample_ms'), '{:.3g}')} ms per sample"
+                         + (f", first render(s) +{extra:.0f} ms (warm-up, not timed)" if extra is not None else ""))
+            for c in pts:
+                brows.append(f"| {name} | {LABELS.get(b, b)} | {c['spp']} | {fmt(c['time_ms'], '{:.1f}')} | "
+                             f"{fmt(c.get('wall_ms'), '{:.0f}')} | {fmt(c['relmse'])} | {fmt(c.get('flip'), '{:.3f}')} | "
+                             f"{fmt(c.get('ssim'), '{:.4f}')} |")
+    if len(brows) > 2:
+        out += "\nBaselines (ms/frame = wall time minus the fitted one-time setup):\n\n" + "\n".join(brows) + "\n\n"
+        out += "\n".join(notes) + "\n"
+    return out
 
 
 if __name__ == "__main__":

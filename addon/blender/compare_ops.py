@@ -333,7 +333,10 @@ def _fmt(v, f="{:.4g}"):
 
 
 def draw_comparison(layout, scene):
-    """The metrics table (technique, relMSE, FLIP, SSIM, ms/frame) and the compare button."""
+    """The metrics table (technique, relMSE, FLIP, SSIM, ms/frame, setup ms) and the compare
+    button. ms/frame is the per-frame time; setup ms the one-time scene setup (export, GPU
+    upload, BVH, shader compilation) of that comparison, shown apart ("-" when the stored
+    entry has none)."""
     col = layout.column(align=True)
     col.operator(GIPREVIEW_OT_compare.bl_idname, icon="IMAGE_REFERENCE")
     res = load_results(scene)
@@ -342,7 +345,7 @@ def draw_comparison(layout, scene):
         return
     box = layout.box()
     head = box.row()
-    for title in ("Technique", "relMSE", "FLIP", "SSIM", "ms/frame"):
+    for title in ("Technique", "relMSE", "FLIP", "SSIM", "ms/frame", "setup ms"):
         head.label(text=title)
     for tech in sorted(res):
         e = res[tech]
@@ -352,6 +355,7 @@ def draw_comparison(layout, scene):
         row.label(text=_fmt(e.get("flip")))
         row.label(text=_fmt(e.get("ssim"), "{:.3f}"))
         row.label(text=_fmt(e.get("ms_per_frame"), "{:.1f}"))
+        row.label(text=_fmt(e.get("setup_ms"), "{:.0f}"))
     last = res.get(getattr(scene.gi_preview_comparison, "last_technique", ""), None) \
         if hasattr(scene, "gi_preview_comparison") else None
     if last:

@@ -251,8 +251,13 @@ def _vl_path(vl) -> str:
 
 
 def fair_settings(scene, kind: str, spp: int, seed: int = DEFAULT_SEED,
-                  width: int | None = None, height: int | None = None) -> list[tuple[str, object]]:
-    """The (path relative to the scene, value) pairs applied for a reference, in order."""
+                  width: int | None = None, height: int | None = None, *,
+                  denoise: bool = False) -> list[tuple[str, object]]:
+    """The (path relative to the scene, value) pairs applied for a reference, in order.
+
+    ``denoise=True`` gives the ``cycles_denoised`` baseline instead: the same settings with
+    :func:`denoise_settings` (OpenImageDenoise with albedo and normal guides) replacing
+    "no denoising"."""
     if kind not in KINDS:
         raise ValueError(f"unknown reference kind {kind!r}; one of {KINDS}")
     s = [("render.engine", "CYCLES"),
@@ -285,24 +290,78 @@ def fair_settings(scene, kind: str, spp: int, seed: int = DEFAULT_SEED,
         s.append((f"cycles.{k}", v))
     for vl in scene.view_layers:
         s.append((f"{_vl_path(vl)}.cycles.use_denoising", False))
-    s += [("render.film_transparent", kind == "ao"),
-          ("render.use_compositing", False),
-          ("render.use_sequencer", False),
-          ("render.use_border", False),
-          ("render.resolution_percentage", 100),
-          ("render.use_motion_blur", False),
-          ("render.image_settings.media_type", "IMAGE"),
-          ("render.image_settings.file_format", "OPEN_EXR"),
-          ("render.image_settings.color_depth", "32"),
-          ("render.image_settings.color_mode", "RGBA"),
-          ("render.image_settings.exr_codec", "ZIP"),
-          ("render.image_settings.color_management", "FOLLOW_SCENE"),
-          ("view_settings.view_transform", "Standard"),
-          ("view_settings.look", "None"),
-          ("view_settings.exposure", 0.0),
-          ("view_settings.gamma", 1.0),
-          ("view_settings.use_curve_mapping", False),
-          ("view_settings.use_white_balance", False)]
+    if denoise:
+        dn = denoise_settings(scene)
+        paths = {p for p, _ in dn}
+        s = [(p, v) for p, v in s if p not in paths] + dn
+    return s + output_settings(transparent=kind == "ao", width=width, height=height)
+
+
+def denoise_settings(scene) -> list[tuple[str, object]]:
+    """Cycles with Blender's OpenImageDenoise on the CPU, fed the albedo and normal guide
+    passes (``RGB_ALBEDO_NORMAL``), prefilter "Accurate", quality "High": what an artist
+    turns on for a quick, clean preview. Denoising is enabled on every view layer too
+    (Cycles denoises only where both the scene and the layer flag are on)."""
+    s = [("cycles.use_denoising", True),
+         ("cycles.denoiser", "OPENIMAGEDENOISE"),
+         ("cycles.denoising_input_passes", "RGB_ALBEDO_NORMAL"),
+         ("cycles.denoising_prefilter", "ACCURATE")]
+    for name, value in (("denoising_quality", "HIGH"), ("denoising_use_gpu", False)):
+        if hasattr(scene.cycles, name):  # Blender 4.1+ / 4.2+
+            s.append((f"cycles.{name}", value))
+    for vl in scene.view_layers:
+        s.append((f"{_vl_path(vl)}.cycles.use_denoising", True))
+    return s
+
+
+def eevee_settings(scene, samples: int, width: int | None = None,
+                   height: int | None = None) -> list[tuple[str, object]]:
+    """EEVEE (Blender 4.2+ ``BLENDER_EEVEE``) as an artist previews GI with it: ``samples``
+    render samples, ray tracing on (``use_raytracing``, screen-space tracing at full
+    resolution, its denoiser on, rays above roughness 0.5 from the horizon scan), fast GI
+    (horizon scan) in "Global Illumination" mode, shadows on, no clamping of direct or
+    indirect light (the Cycles references are not clamped either), pixel filter 1.5 px
+    (Blender's default). Everything else stays as the scene has it; the output settings are
+    the references' (:func:`output_settings`)."""
+    e = [("render.engine", "BLENDER_EEVEE"),
+         ("eevee.taa_render_samples", int(samples)),
+         ("eevee.use_raytracing", True),
+         ("eevee.ray_tracing_method", "SCREEN"),
+         ("eevee.ray_tracing_options.resolution_scale", "1"),
+         ("eevee.ray_tracing_options.use_denoise", True),
+         ("eevee.ray_tracing_options.trace_max_roughness", 0.5),
+         ("eevee.use_fast_gi", True),
+         ("eevee.fast_gi_method", "GLOBAL_ILLUMINATION"),
+         ("eevee.use_shadows", True),
+         ("eevee.clamp_surface_direct", 0.0),
+         ("eevee.clamp_surface_indirect", 0.0),
+         ("render.filter_size", 1.5)]
+    return e + output_settings(transparent=False, width=width, height=height)
+
+
+def output_settings(*, transparent: bool, width: int | None = None,
+                    height: int | None = None) -> list[tuple[str, object]]:
+    """Film, post-processing and file settings shared by references and baselines: opaque
+    (or transparent) film, no compositing/sequencer/border/motion blur, 100 %, 32-bit
+    float EXR, scene-linear "Standard" view with nothing else applied."""
+    s = [("render.film_transparent", bool(transparent)),
+         ("render.use_compositing", False),
+         ("render.use_sequencer", False),
+         ("render.use_border", False),
+         ("render.resolution_percentage", 100),
+         ("render.use_motion_blur", False),
+         ("render.image_settings.media_type", "IMAGE"),
+         ("render.image_settings.file_format", "OPEN_EXR"),
+         ("render.image_settings.color_depth", "32"),
+         ("render.image_settings.color_mode", "RGBA"),
+         ("render.image_settings.exr_codec", "ZIP"),
+         ("render.image_settings.color_management", "FOLLOW_SCENE"),
+         ("view_settings.view_transform", "Standard"),
+         ("view_settings.look", "None"),
+         ("view_settings.exposure", 0.0),
+         ("view_settings.gamma", 1.0),
+         ("view_settings.use_curve_mapping", False),
+         ("view_settings.use_white_balance", False)]
     if width is not None:
         s.append(("render.resolution_x", int(width)))
     if height is not None:
@@ -340,30 +399,51 @@ def _run_render(scene):
 def render_cycles(scene, spp: int, kind: str = "full", seed: int = DEFAULT_SEED, *,
                   width: int | None = None, height: int | None = None,
                   ao_distance: float = DEFAULT_AO_DISTANCE, cancel=None,
-                  guard_log: list | None = None):
+                  guard_log: list | None = None, denoise: bool = False):
     """Render a Cycles reference of ``scene`` (its camera, frame, resolution unless width/
     height are given). Returns ``(image float32 (H, W, 4) row 0 bottom, time_ms)``; time_ms
-    is the wall time of the render call (scene sync + BVH + path tracing).
+    is the wall time of the render call (scene sync + BVH + path tracing [+ denoising]).
 
+    ``denoise=True`` renders the ``cycles_denoised`` baseline (OpenImageDenoise with albedo
+    and normal guides, :func:`denoise_settings`) instead of a reference.
     ``guard_log``: if a list is given, the touched paths are appended (for tests)."""
+    if denoise and kind == "ao":
+        raise ValueError("the 'ao' reference cannot be denoised")
+    settings = fair_settings(scene, kind, spp, seed, width, height, denoise=denoise)
+    return _render_with(scene, settings, "Cycles", ao_distance=ao_distance if kind == "ao" else None,
+                        cancel=cancel, guard_log=guard_log)
+
+
+def render_eevee(scene, samples: int, *, width: int | None = None, height: int | None = None,
+                 cancel=None, guard_log: list | None = None):
+    """Render ``scene`` with EEVEE and its ray-traced GI (:func:`eevee_settings`), every
+    setting restored afterwards. Returns ``(image, time_ms)`` like :func:`render_cycles`.
+    The first EEVEE render of a process compiles its shaders (tens of seconds on llvmpipe);
+    :func:`baseline_curve` renders an untimed warm-up first and reports that cost apart."""
+    settings = eevee_settings(scene, samples, width, height)
+    return _render_with(scene, settings, "EEVEE", cancel=cancel, guard_log=guard_log)
+
+
+def _render_with(scene, settings, engine_label: str, *, ao_distance=None, cancel=None,
+                 guard_log=None):
+    """Apply ``settings`` under a :class:`SettingsGuard`, render, read the EXR back, restore."""
     ensure_oiio()
     if scene.camera is None:
-        raise RuntimeError(f"Scene '{scene.name}' has no camera: a Cycles reference needs one")
+        raise RuntimeError(f"Scene '{scene.name}' has no camera: a {engine_label} render needs one")
     if cancel is not None and cancel():
-        raise ReferenceCancelled("cancelled before the Cycles render")
+        raise ReferenceCancelled(f"cancelled before the {engine_label} render")
     fd, tmp = tempfile.mkstemp(prefix="gi_preview_ref_", suffix=".exr")
     os.close(fd)
     guard = SettingsGuard(scene)
     try:
         with guard:
-            settings = fair_settings(scene, kind, spp, seed, width, height)
             for path, _ in settings:
                 guard.record(path)
             for vl in scene.view_layers:
                 guard.record(f"{_vl_path(vl)}.material_override")
             for path, value in settings:
                 guard.set(path, value)
-            if kind == "ao":
+            if ao_distance is not None:
                 mat = _ao_material(ao_distance)
 
                 def _remove(m=mat):
@@ -378,7 +458,7 @@ def render_cycles(scene, spp: int, kind: str = "full", seed: int = DEFAULT_SEED,
             time_ms = (time.perf_counter() - t0) * 1000.0
             rr = bpy.data.images.get("Render Result")
             if rr is None:
-                raise RuntimeError("Cycles produced no Render Result")
+                raise RuntimeError(f"{engine_label} produced no Render Result")
             rr.save_render(tmp, scene=scene)
         image = imageio.read_exr(tmp)
     finally:
@@ -388,12 +468,12 @@ def render_cycles(scene, spp: int, kind: str = "full", seed: int = DEFAULT_SEED,
             pass
     if guard.errors:
         raise RuntimeError("settings not fully restored: " + "; ".join(guard.errors))
-    if kind == "ao":
+    if ao_distance is not None:
         a = image[:, :, 3:4]
         image[:, :, :3] = image[:, :, :3] + (1.0 - a)  # background (and edges) = unoccluded
         image[:, :, 3] = 1.0
     if cancel is not None and cancel():
-        raise ReferenceCancelled("cancelled during the Cycles render")
+        raise ReferenceCancelled(f"cancelled during the {engine_label} render")
     return image, time_ms
 
 
@@ -512,3 +592,85 @@ def cycles_curve(scene, spp_list, reference: Reference, *, kind: str | None = No
         if progress is not None:
             progress(i + 1, len(spp_list), spp, ms)
     return out
+
+
+# ---------------------------------------------------------------- baselines
+BASELINES = ("cycles", "cycles_denoised", "eevee")
+BASELINE_LABELS = {"cycles": "Cycles", "cycles_denoised": "Cycles + OpenImageDenoise",
+                   "eevee": "EEVEE (ray tracing)"}
+
+
+def render_baseline(scene, baseline: str, spp: int, kind: str = "full", seed: int = DEFAULT_SEED + 1, *,
+                    width: int | None = None, height: int | None = None, cancel=None):
+    """One render of a baseline (``cycles``, ``cycles_denoised``, ``eevee``) at ``spp``
+    samples; returns ``(image, wall_ms)``. EEVEE and denoised Cycles exist for ``full`` only
+    (EEVEE has no bounce limits to match the other reference kinds)."""
+    if baseline not in BASELINES:
+        raise ValueError(f"unknown baseline {baseline!r}; one of {BASELINES}")
+    if baseline != "cycles" and kind != "full":
+        raise ValueError(f"baseline {baseline!r} is measured against the 'full' reference only, not {kind!r}")
+    if baseline == "eevee":
+        return render_eevee(scene, spp, width=width, height=height, cancel=cancel)
+    return render_cycles(scene, spp, kind, seed, width=width, height=height, cancel=cancel,
+                         denoise=baseline == "cycles_denoised")
+
+
+def baseline_curve(scene, baseline: str, spp_list, reference: Reference, *, seed: int = DEFAULT_SEED + 1,
+                   setup_ms: float | None = None, warmup: int | bool = True, metrics_fn=None, progress=None,
+                   cancel=None) -> dict:
+    """A baseline's error-vs-time curve against ``reference``, per-frame time apart from setup.
+
+    Each spp of ``spp_list`` is rendered once (never cached: the times are the point), after
+    untimed warm-up renders at the smallest spp (``warmup``: a count, or True for the
+    default: one for Cycles, which loads its kernels and initialises OpenImageDenoise; two
+    for EEVEE, whose first *two* renders in a process compile shaders, measured 6.3 and
+    6.0 s against 2.5 and 3.3 s later at 128 px with a warm Mesa shader cache, about 35 s
+    for the first with a cold one). ``warmup_ms`` is their total; minus the timed renders
+    at the same spp it is reported as ``first_render_extra_ms``.
+
+    Timing (:func:`..compare.sweep.fit_setup`): the wall times are fitted as
+    ``setup + per_sample * spp``. ``setup`` is what every render call pays once whatever the
+    sample count (scene sync, BVH build, EEVEE's per-render set-up), ``per_sample`` the cost
+    of one sample. A point's ``time_ms`` is the per-frame time without setup:
+    ``wall_ms - setup_ms`` on the fitted line, i.e. ``per_sample * spp`` for Cycles and
+    EEVEE. For ``cycles_denoised`` pass the plain Cycles curve's ``setup_ms``: the
+    denoiser's own fixed cost is paid every frame, so it stays in ``time_ms``.
+
+    Returns ``{"baseline", "label", "kind", "setup_ms", "per_sample_ms", "fit",
+    "warmup_ms", "first_render_extra_ms", "points": [{"spp", "time_ms", "wall_ms",
+    "setup_ms", "relmse", "flip", "ssim", "image"}]}`` (drop "image" before writing JSON).
+    """
+    from ..compare import metrics as M
+    from ..compare import sweep
+    metrics_fn = metrics_fn or (lambda t, r: M.compare(t, r))
+    spp_list = sorted({int(s) for s in spp_list})
+    if not spp_list or spp_list[0] < 1:
+        raise ValueError(f"baseline {baseline}: spp list must hold positive integers, got {spp_list}")
+    kw = dict(kind=reference.kind, seed=seed, width=reference.width, height=reference.height, cancel=cancel)
+    n_warm = (2 if baseline == "eevee" else 1) if warmup is True else int(warmup)
+    warm_ms = None
+    for _ in range(n_warm):
+        _, ms = render_baseline(scene, baseline, spp_list[0], **kw)
+        warm_ms = (warm_ms or 0.0) + ms
+    pts = []
+    for i, spp in enumerate(spp_list):
+        if cancel is not None and cancel():
+            raise ReferenceCancelled(f"cancelled during the {baseline} curve")
+        img, ms = render_baseline(scene, baseline, spp, **kw)
+        m = metrics_fn(img, reference.image)
+        pts.append({"spp": spp, "wall_ms": ms, "relmse": m["relmse"], "flip": m.get("flip"),
+                    "ssim": m.get("ssim"), "image": img})
+        if progress is not None:
+            progress(i + 1, len(spp_list), spp, ms)
+    fit = sweep.fit_setup([(p["spp"], p["wall_ms"]) for p in pts])
+    setup = fit["setup_ms"] if setup_ms is None else max(0.0, min(float(setup_ms), min(p["wall_ms"] for p in pts)))
+    for p in pts:
+        fitted_wall = fit["setup_ms"] + fit["per_sample_ms"] * p["spp"] if fit["ok"] else p["wall_ms"]
+        p["time_ms"] = max(fitted_wall - setup, 1e-3)
+        p["setup_ms"] = setup
+    return {"baseline": baseline, "label": BASELINE_LABELS[baseline], "kind": reference.kind,
+            "setup_ms": setup, "per_sample_ms": fit["per_sample_ms"], "fit": fit,
+            "warmup_ms": warm_ms,
+            "warmup_renders": n_warm,
+            "first_render_extra_ms": (warm_ms - n_warm * pts[0]["wall_ms"]) if warm_ms is not None else None,
+            "points": pts}

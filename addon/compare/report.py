@@ -11,6 +11,20 @@ import html
 import math
 
 
+_BASELINE_LABELS = {"cycles": "Cycles", "cycles_denoised": "Cycles + OpenImageDenoise",
+                    "eevee": "EEVEE (ray tracing)"}
+
+
+def _bound(s: dict) -> str:
+    """"&le; 1.2&times;" / "&ge; 3&times;" for a speed-up outside the baseline's curve, else "n/a"."""
+    b = s.get("bound") or {}
+    if b.get("at_most") is not None:
+        return f'&le;&thinsp;{_num(b["at_most"], "{:.3g}")}&times;'
+    if b.get("at_least") is not None:
+        return f'&ge;&thinsp;{_num(b["at_least"], "{:.3g}")}&times;'
+    return "n/a"
+
+
 def entry_id(technique: str, quality, reference: str) -> str:
     """The key tying a results entry to its images: ``TECH_q<quality>_<reference>``."""
     return f"{technique}_q{quality}_{reference}"
@@ -58,7 +72,10 @@ def build_html(*, title: str, results: dict, images: dict | None = None, chart_s
       ``cycles_curve``, ``speedup``...). Each entry: technique, quality, reference, time_ms,
       relmse, flip, ssim, psnr, nonfinite_pixels, effects, skipped_passes, speedup (dict).
     images: {entry_id(...): {"ours": png, "cycles": png, "error": png}} plus optional
-      {"reference:<kind>": png} for the Cycles images shown at the top.
+      {"reference:<kind>": png} for the Cycles images shown at the top and
+      {"baseline:<name>": png} for each baseline's image at its largest sample count.
+    results["baselines"]: {name: [{spp, time_ms, wall_ms, relmse, flip, ssim}]} and
+      entries' "speedups": {name: {speedup, cycles_spp, reason}} give the speed-up table.
     """
     images = images or {}
     legend = legend or {}
@@ -88,11 +105,16 @@ def build_html(*, title: str, results: dict, images: dict | None = None, chart_s
     if settings:
         p.append('<p class="meta">Reference settings: ' + html.escape(settings) + "</p>")
     ref_imgs = [(k[len("reference:"):], v) for k, v in images.items() if k.startswith("reference:")]
-    if ref_imgs:
+    base_imgs = [(k[len("baseline:"):], v) for k, v in images.items() if k.startswith("baseline:")]
+    if ref_imgs or base_imgs:
         p.append('<div class="row">')
         for kind, png in ref_imgs:
             p.append(f"<figure>{_img(png, 'Cycles ' + kind, 'px')}<figcaption>Cycles, {html.escape(kind)}"
                      "</figcaption></figure>")
+        for name, png in base_imgs:
+            pts = (results.get("baselines") or {}).get(name) or [{}]
+            cap = f"{_BASELINE_LABELS.get(name, name)}, {_num(pts[-1].get('spp'), '{}')} spp"
+            p.append(f"<figure>{_img(png, cap, 'px')}<figcaption>{html.escape(cap)}</figcaption></figure>")
         p.append("</div>")
 
     # ---- metrics table
@@ -100,11 +122,12 @@ def build_html(*, title: str, results: dict, images: dict | None = None, chart_s
     p.append('<p class="meta">relMSE = mean (a&minus;b)&sup2;/(b&sup2;+0.01) on linear HDR; FLIP = HDR-FLIP mean; '
              'SSIM and PSNR on the sRGB "Standard" view. Lower is better except SSIM and PSNR. '
              'ms/frame: median time of one frame; ms (image): the accumulated image (frames &times; ms/frame), the time '
-             'the chart and the speed-up use. Speed-up = Cycles time to reach the same relMSE / technique time (same '
-             'machine, same run).</p>')
+             'the chart and the speed-up use; setup ms: one-time scene setup (export, GPU upload, BVH, shader '
+             'compilation), never part of the per-frame time. Speed-up = Cycles time to reach the same relMSE / '
+             'technique time, both without setup (same machine, same run); against the other baselines below.</p>')
     p.append('<table><tr><th class="l">technique</th><th>quality</th><th class="l">reference</th>'
-             '<th>ms/frame</th><th>frames</th><th>ms (image)</th><th>relMSE</th><th>FLIP</th><th>SSIM</th><th>PSNR (dB)</th>'
-             '<th>non-finite px</th><th>equal-error speed-up</th></tr>')
+             '<th>ms/frame</th><th>frames</th><th>ms (image)</th><th>setup ms</th><th>relMSE</th><th>FLIP</th>'
+             '<th>SSIM</th><th>PSNR (dB)</th><th>non-finite px</th><th>equal-error speed-up</th></tr>')
     for e in entries:
         s = e.get("speedup") or {}
         sp = _num(s.get("speedup"), "{:.3g}&times;") if s.get("speedup") is not None else \
@@ -114,7 +137,7 @@ def build_html(*, title: str, results: dict, images: dict | None = None, chart_s
         p.append(f'<tr><td class="l">{html.escape(str(e.get("technique")))}</td><td>{_num(e.get("quality"), "{}")}</td>'
                  f'<td class="l">{html.escape(str(e.get("reference")))}</td><td>{_num(e.get("frame_ms"), "{:.2f}")}</td>'
                  f'<td>{_num(e.get("samples"), "{}")}</td><td>{_num(e.get("time_ms"), "{:.1f}")}</td>'
-                 f'<td>{_num(e.get("relmse"))}</td><td>{_num(e.get("flip"))}</td><td>{_num(e.get("ssim"), "{:.4f}")}</td>'
+                 f'<td>{_num(e.get("setup_ms"), "{:.0f}")}</td><td>{_num(e.get("relmse"))}</td><td>{_num(e.get("flip"))}</td><td>{_num(e.get("ssim"), "{:.4f}")}</td>'
                  f'<td>{_num(e.get("psnr"), "{:.2f}")}</td><td>{nf_s}</td><td>{sp}</td></tr>')
     p.append("</table>")
     reasons = [(e, (e.get("speedup") or {}).get("reason")) for e in entries
@@ -124,14 +147,65 @@ def build_html(*, title: str, results: dict, images: dict | None = None, chart_s
             f"<li>{html.escape(str(e['technique']))} q{e.get('quality')} vs {html.escape(str(e.get('reference')))}: "
             f"no speed-up: {html.escape(r)}</li>" for e, r in reasons) + "</ul>")
 
+    # ---- equal-error speed-ups against every baseline
+    baselines = results.get("baselines") or {}
+    with_sp = [e for e in entries if e.get("speedups")]
+    names = [b for b in baselines if any(b in e["speedups"] for e in with_sp)]
+    if with_sp and names:
+        ref_kind = (results.get("reference") or {}).get("kind", "full")
+        p.append("<h2>Equal-error speed-ups</h2>")
+        p.append(f'<p class="meta">Each baseline&rsquo;s per-frame time to reach the technique&rsquo;s relMSE '
+                 f'against Cycles &lsquo;{html.escape(str(ref_kind))}&rsquo;, divided by the technique&rsquo;s '
+                 'time; one-time setup left out on both sides. &gt; 1: the technique is faster at equal error. '
+                 '&le;/&ge;: the technique&rsquo;s error lies outside the baseline&rsquo;s measured curve, so only a '
+                 'bound is known (&le;: the baseline&rsquo;s cheapest render is already more accurate; &ge;: the '
+                 'technique beats its most expensive one); hover for the reason. No extrapolation.</p>')
+        p.append('<table><tr><th class="l">technique</th><th>quality</th><th>ms (image)</th><th>relMSE</th>'
+                 + "".join(f"<th>vs {html.escape(_BASELINE_LABELS.get(b, b))}</th>" for b in names) + "</tr>")
+        for e in with_sp:
+            if e.get("reference") != ref_kind:
+                continue
+            cells = []
+            for b in names:
+                s = (e.get("speedups") or {}).get(b) or {}
+                if s.get("speedup") is not None:
+                    cells.append(f'<td title="{html.escape(s.get("reason", ""))}">{_num(s["speedup"], "{:.3g}&times;")}'
+                                 f' <span class="meta">({_num(s.get("cycles_spp"), "{:.2g}")} spp)</span></td>')
+                else:
+                    cells.append(f'<td><span title="{html.escape(s.get("reason", ""))}">{_bound(s)}</span></td>')
+            p.append(f'<tr><td class="l">{html.escape(str(e.get("technique")))}</td><td>{_num(e.get("quality"), "{}")}</td>'
+                     f'<td>{_num(e.get("time_ms"), "{:.1f}")}</td><td>{_num(e.get("relmse"))}</td>{"".join(cells)}</tr>')
+        p.append("</table>")
+
     # ---- chart
     if chart_svg:
         p.append("<h2>Cost vs accuracy</h2>")
         p.append(chart_svg)
 
-    # ---- Cycles curve
+    # ---- baseline curves
+    setup = results.get("baselines_setup") or {}
+    if baselines:
+        p.append("<h3>Baselines: what a user would pick instead</h3>")
+        p.append('<p class="meta">Each baseline rendered at 1, 2, 4, &hellip; samples in the same run. Wall times are '
+                 'fitted as setup + per-sample &times; spp; <i>ms/frame</i> leaves the setup out (scene sync and BVH '
+                 'for Cycles, per-render set-up for EEVEE), <i>wall ms</i> is the measured render call. The first '
+                 'render of each (Cycles&rsquo; kernels, the denoiser, EEVEE&rsquo;s shader compilation) is an '
+                 'untimed warm-up.</p>')
+        for b, pts in baselines.items():
+            info = setup.get(b) or {}
+            extra = info.get("first_render_extra_ms")
+            p.append(f"<p><b>{html.escape(_BASELINE_LABELS.get(b, b))}</b>: setup {_num(info.get('setup_ms'), '{:.0f}')} ms, "
+                     f"{_num(info.get('per_sample_ms'), '{:.3g}')} ms per sample"
+                     + (f", first render +{_num(extra, '{:.0f}')} ms" if extra is not None else "") + "</p>")
+            p.append('<table><tr><th>spp</th><th>ms/frame</th><th>wall ms</th><th>relMSE</th><th>FLIP</th>'
+                     '<th>SSIM</th></tr>')
+            for c in pts:
+                p.append(f'<tr><td>{_num(c.get("spp"), "{}")}</td><td>{_num(c.get("time_ms"), "{:.1f}")}</td>'
+                         f'<td>{_num(c.get("wall_ms"), "{:.0f}")}</td><td>{_num(c.get("relmse"))}</td>'
+                         f'<td>{_num(c.get("flip"))}</td><td>{_num(c.get("ssim"), "{:.4f}")}</td></tr>')
+            p.append("</table>")
     curve = results.get("cycles_curve") or []
-    if curve:
+    if curve and not baselines:
         p.append("<h3>Cycles' own curve</h3>")
         p.append('<table><tr><th>spp</th><th>time (ms)</th><th>relMSE</th><th>FLIP</th></tr>')
         for c in curve:

@@ -1,10 +1,14 @@
-"""Cost vs accuracy: equal-error speed-up against Cycles' own curve, and the chart (bpy-free).
+"""Cost vs accuracy: equal-error speed-ups against the baselines' curves, setup vs per-frame
+time, and the chart (bpy-free).
 
-Cycles' curve is a list of ``(spp, time_ms, error)`` (or dicts with those keys): Cycles
-rendered at 1, 2, 4, ... spp on the same machine in the same run, each measured against the
-high-spp reference. A technique point is ``(technique, quality, time_ms, error)`` (or a dict).
+A baseline's curve is a list of ``(spp, time_ms, error)`` (or dicts with those keys): the
+baseline (Cycles, Cycles + OpenImageDenoise, EEVEE) rendered at 1, 2, 4, ... samples on the
+same machine in the same run, each measured against the high-spp Cycles reference, with
+``time_ms`` the per-frame time without one-time setup (:func:`fit_setup`). A technique
+point is ``(technique, quality, time_ms, error)`` (or a dict), its time also without setup.
 
-Equal-error speed-up = Cycles' time to reach the technique's error / the technique's time.
+Equal-error speed-up = the baseline's time to reach the technique's error / the technique's
+time. The rules below say "Cycles" for any baseline.
 
 * The curve is made monotone first: sorted by time, error replaced by the running minimum
   ("the best error Cycles had reached by this time"), and only the points where the error
@@ -63,9 +67,19 @@ def monotone_curve(curve, metric: str = "relmse") -> list[tuple[float, float, fl
     return out
 
 
-def equal_error_speedup(error, time_ms, curve, metric: str = "relmse") -> dict:
-    """{"speedup": float|None, "cycles_time_ms": float|None, "cycles_spp": float|None, "reason": str}."""
-    res = {"speedup": None, "cycles_time_ms": None, "cycles_spp": None, "reason": ""}
+def equal_error_speedup(error, time_ms, curve, metric: str = "relmse", name: str = "Cycles") -> dict:
+    """{"speedup": float|None, "cycles_time_ms": float|None, "cycles_spp": float|None, "reason": str}.
+
+    ``curve`` may be any baseline's curve (Cycles, denoised Cycles, EEVEE); ``name`` is used
+    in the reasons. ``cycles_time_ms``/``cycles_spp`` are the baseline's interpolated time
+    and samples at the technique's error (the key names predate the other baselines).
+
+    Outside the curve there is no number, but a bound (``bound``: ``{"at_most": x}`` or
+    ``{"at_least": x}``): a technique worse than the baseline's cheapest point is at most
+    (that point's time / the technique's time) faster, since the baseline gets a lower error
+    in that time; one better than its most expensive point is at least (that time / the
+    technique's time) faster."""
+    res = {"speedup": None, "cycles_time_ms": None, "cycles_spp": None, "reason": "", "bound": None}
     if not (isinstance(error, (int, float)) and math.isfinite(error)):
         res["reason"] = "technique error is not finite"
         return res
@@ -74,16 +88,18 @@ def equal_error_speedup(error, time_ms, curve, metric: str = "relmse") -> dict:
         return res
     mono = monotone_curve(curve, metric)
     if not mono:
-        res["reason"] = "Cycles curve is empty"
+        res["reason"] = f"{name} curve is empty"
         return res
     e_hi, e_lo = mono[0][2], mono[-1][2]
     if error > e_hi:
-        res["reason"] = (f"error above Cycles' curve (worse than Cycles at {mono[0][0]:g} spp, "
+        res["reason"] = (f"error above {name}'s curve (worse than {name} at {mono[0][0]:g} spp, "
                          f"{e_hi:.4g}); no extrapolation")
+        res["bound"] = {"at_most": mono[0][1] / float(time_ms)}
         return res
     if error < e_lo:
-        res["reason"] = (f"error below Cycles' curve (better than Cycles at {mono[-1][0]:g} spp, "
+        res["reason"] = (f"error below {name}'s curve (better than {name} at {mono[-1][0]:g} spp, "
                          f"{e_lo:.4g}); no extrapolation")
+        res["bound"] = {"at_least": mono[-1][1] / float(time_ms)}
         return res
     if error == e_hi or len(mono) == 1:
         t, spp = mono[0][1], mono[0][0]
@@ -96,7 +112,7 @@ def equal_error_speedup(error, time_ms, curve, metric: str = "relmse") -> dict:
                 spp = math.exp(math.log(s0) + f * (math.log(s1) - math.log(s0)))
                 break
     res.update(speedup=t / float(time_ms), cycles_time_ms=t, cycles_spp=spp,
-               reason="interpolated on Cycles' curve")
+               reason=f"interpolated on {name}'s curve")
     return res
 
 
@@ -106,6 +122,51 @@ def speedups(points, curve, metric: str = "relmse") -> list[dict]:
     for p in _point_dicts(points):
         s = equal_error_speedup(p.get("error"), p.get("time_ms"), curve, metric)
         out.append({"technique": p.get("technique"), "quality": p.get("quality"), **s})
+    return out
+
+
+# ---------------------------------------------------------------- setup vs per-frame time
+def fit_setup(points) -> dict:
+    """Split a renderer's wall times into one-time setup and per-sample cost.
+
+    ``points``: ``(spp, wall_ms)`` pairs of one renderer at several sample counts. Fits
+    ``wall = setup + per_sample * spp`` by least squares on *relative* residuals (weights
+    1/wall², so the 1-spp render counts as much as the 64-spp one), with
+    ``0 <= setup <= min(wall)`` and ``per_sample > 0``. Returns ``{"setup_ms",
+    "per_sample_ms", "ok", "n", "max_rel_residual", "reason"}``; ``ok`` is False (setup 0,
+    per_sample the median wall/spp) when fewer than two distinct sample counts are given
+    or the times do not grow with spp.
+    """
+    pts = [(float(s), float(t)) for s, t in points if _ok(s) and _ok(t)]
+    out = {"setup_ms": 0.0, "per_sample_ms": None, "ok": False, "n": len(pts), "max_rel_residual": None,
+           "reason": ""}
+    if pts:
+        r = sorted(t / s for s, t in pts)
+        out["per_sample_ms"] = r[len(r) // 2]
+    if len({s for s, _ in pts}) < 2:
+        out["reason"] = "fewer than two sample counts: no setup/per-sample split"
+        return out
+    w = [1.0 / (t * t) for _, t in pts]
+    sw = sum(w)
+    sws = sum(wi * s for wi, (s, _) in zip(w, pts))
+    swss = sum(wi * s * s for wi, (s, _) in zip(w, pts))
+    swt = sum(wi * t for wi, (_, t) in zip(w, pts))
+    swst = sum(wi * s * t for wi, (s, t) in zip(w, pts))
+    det = sw * swss - sws * sws
+    a = (swss * swt - sws * swst) / det
+    if (sw * swst - sws * swt) / det <= 0.0:  # unconstrained slope: times fall with spp
+        out["reason"] = "render times do not grow with the sample count"
+        return out
+    t_min = min(t for _, t in pts)
+    if a < 0.0 or a > t_min:
+        a = min(max(a, 0.0), t_min)
+    b = (swst - a * sws) / swss  # best per-sample cost for that setup
+    if not (b > 0.0 and math.isfinite(b)):
+        out["reason"] = "render times do not grow with the sample count"
+        return out
+    res = max(abs(a + b * s - t) / t for s, t in pts)
+    out.update(setup_ms=a, per_sample_ms=b, ok=True, max_rel_residual=res,
+               reason="wall = setup + per_sample x spp, relative least squares")
     return out
 
 
@@ -123,16 +184,34 @@ def _fmt(v: float) -> str:
     return f"{v:g}"
 
 
+# baseline curve styles: (colour, SVG dash, SVG marker, matplotlib format)
+_CURVE_STYLES = [("#444444", "", "circle", "-o"), ("#111111", "7 3", "triangle", "--^"),
+                 ("#888888", "2 3", "diamond", ":D"), ("#555555", "10 3 2 3", "square", "-.s")]
+
+
+def _curve_sets(curve, metric: str) -> list[tuple[str, list[tuple[float, float, float]]]]:
+    """``curve`` as [(label, finite tuples sorted by time)]: a list is one curve labelled
+    "Cycles (spp)"; a dict maps legend labels to curves (one per baseline)."""
+    items = curve.items() if isinstance(curve, dict) else [("Cycles (spp)", curve)]
+    out = []
+    for label, c in items:
+        cur = sorted((t for t in _curve_tuples(c or [], metric) if _ok(t[1]) and _ok(t[2])), key=lambda t: t[1])
+        out.append((str(label), cur))
+    return out
+
+
 def chart_svg(points, curve, *, metric: str = "relMSE", title: str = "",
               width: int = 720, height: int = 480) -> str:
     """A log-log chart (x: time per frame in ms, y: error) as an SVG string, written by hand.
 
-    Cycles' curve is a line with its spp labelled; each technique point is a marker labelled
-    "TECH qN"; points of one technique are joined along its quality ladder."""
+    ``curve``: Cycles' curve, or a dict {legend label: curve} with one curve per baseline
+    (Cycles, Cycles + OpenImageDenoise, EEVEE), each a line in its own dash and marker with
+    its spp labelled; each technique point is a marker labelled "TECH qN"; points of one
+    technique are joined along its quality ladder."""
     pts = [p for p in _point_dicts(points) if _ok(p.get("time_ms")) and _ok(p.get("error"))]
-    cur = [c for c in _curve_tuples(curve, metric.lower()) if _ok(c[1]) and _ok(c[2])]
-    xs = [p["time_ms"] for p in pts] + [c[1] for c in cur]
-    ys = [p["error"] for p in pts] + [c[2] for c in cur]
+    sets = _curve_sets(curve, metric.lower())
+    xs = [p["time_ms"] for p in pts] + [c[1] for _, cur in sets for c in cur]
+    ys = [p["error"] for p in pts] + [c[2] for _, cur in sets for c in cur]
     ml, mr, mt, mb = 70, 150, 40, 55
     pw, ph = width - ml - mr, height - mt - mb
     parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
@@ -168,14 +247,28 @@ def chart_svg(points, curve, *, metric: str = "relMSE", title: str = "",
                  f'time per frame (ms, log scale)</text>')
     parts.append(f'<text x="16" y="{mt + ph / 2:.1f}" text-anchor="middle" '
                  f'transform="rotate(-90 16 {mt + ph / 2:.1f})">{html.escape(metric)} (log scale)</text>')
-    # Cycles curve
-    cur.sort(key=lambda c: c[1])
-    if cur:
+    # baseline curves
+    def marker(kind, x, y, col):
+        if kind == "triangle":
+            return (f'<path d="M{x:.1f},{y - 4:.1f} L{x + 4:.1f},{y + 3:.1f} L{x - 4:.1f},{y + 3:.1f} Z" '
+                    f'fill="{col}"/>')
+        if kind == "diamond":
+            return (f'<path d="M{x:.1f},{y - 4:.1f} L{x + 4:.1f},{y:.1f} L{x:.1f},{y + 4:.1f} '
+                    f'L{x - 4:.1f},{y:.1f} Z" fill="{col}"/>')
+        if kind == "square":
+            return f'<rect x="{x - 3:.1f}" y="{y - 3:.1f}" width="6" height="6" fill="{col}"/>'
+        return f'<circle cx="{x:.1f}" cy="{y:.1f}" r="3" fill="{col}"/>'
+
+    for k, (label, cur) in enumerate(sets):
+        col, dash, mk, _ = _CURVE_STYLES[k % len(_CURVE_STYLES)]
+        if not cur:
+            continue
         d = " ".join(f"{'M' if i == 0 else 'L'}{X(c[1]):.1f},{Y(c[2]):.1f}" for i, c in enumerate(cur))
-        parts.append(f'<path d="{d}" fill="none" stroke="#444" stroke-width="2"/>')
+        da = f' stroke-dasharray="{dash}"' if dash else ""
+        parts.append(f'<path d="{d}" fill="none" stroke="{col}" stroke-width="2"{da}/>')
         for c in cur:
-            parts.append(f'<circle cx="{X(c[1]):.1f}" cy="{Y(c[2]):.1f}" r="3" fill="#444"/>')
-            parts.append(f'<text x="{X(c[1]) + 5:.1f}" y="{Y(c[2]) - 5:.1f}" fill="#444" '
+            parts.append(marker(mk, X(c[1]), Y(c[2]), col))
+            parts.append(f'<text x="{X(c[1]) + 5:.1f}" y="{Y(c[2]) - 5:.1f}" fill="{col}" '
                          f'font-size="9">{c[0]:g}</text>')
     # technique points
     techs = []
@@ -212,8 +305,14 @@ def chart_svg(points, curve, *, metric: str = "relMSE", title: str = "",
         parts.append(f'<text x="{bx[0]:.1f}" y="{bx[3] - 2:.1f}" fill="{col}">{html.escape(label)}</text>')
     # legend
     lx, ly = ml + pw + 14, mt + 10
-    parts.append(f'<line x1="{lx}" y1="{ly}" x2="{lx + 22}" y2="{ly}" stroke="#444" stroke-width="2"/>')
-    parts.append(f'<text x="{lx + 28}" y="{ly + 4}">Cycles (spp)</text>')
+    for k, (label, _) in enumerate(sets):
+        col, dash, mk, _ = _CURVE_STYLES[k % len(_CURVE_STYLES)]
+        y = ly + 18 * k
+        da = f' stroke-dasharray="{dash}"' if dash else ""
+        parts.append(f'<line x1="{lx}" y1="{y}" x2="{lx + 22}" y2="{y}" stroke="{col}" stroke-width="2"{da}/>')
+        parts.append(marker(mk, lx + 11, y, col))
+        parts.append(f'<text x="{lx + 28}" y="{y + 4}">{html.escape(label)}</text>')
+    ly += 18 * (len(sets) - 1)
     for i, tech in enumerate(techs):
         y = ly + 18 * (i + 1)
         col = _PALETTE[i % len(_PALETTE)]
@@ -233,14 +332,16 @@ def chart_png(points, curve, path: str, *, metric: str = "relMSE", title: str = 
     except Exception:  # noqa: BLE001 - any import problem means "no PNG"
         return None
     pts = [p for p in _point_dicts(points) if _ok(p.get("time_ms")) and _ok(p.get("error"))]
-    cur = sorted((c for c in _curve_tuples(curve, metric.lower()) if _ok(c[1]) and _ok(c[2])),
-                 key=lambda c: c[1])
-    fig, ax = plt.subplots(figsize=(7.2, 4.8), dpi=100)
-    if cur:
-        ax.plot([c[1] for c in cur], [c[2] for c in cur], "-o", color="#444", ms=3, label="Cycles (spp)")
+    sets = _curve_sets(curve, metric.lower())
+    fig, ax = plt.subplots(figsize=(8.0, 4.8), dpi=100)
+    for k, (label, cur) in enumerate(sets):
+        col, _, _, fmt = _CURVE_STYLES[k % len(_CURVE_STYLES)]
+        if not cur:
+            continue
+        ax.plot([c[1] for c in cur], [c[2] for c in cur], fmt, color=col, ms=4, label=label)
         for c in cur:
             ax.annotate(f"{c[0]:g}", (c[1], c[2]), textcoords="offset points", xytext=(4, 4),
-                        fontsize=7, color="#444")
+                        fontsize=7, color=col)
     techs = []
     for p in pts:
         if p["technique"] not in techs:
