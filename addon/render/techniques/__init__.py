@@ -39,6 +39,10 @@ class Technique:
     quality_levels = (0, 1, 2, 3)
     default_quality = 1
     converges = True  # does accumulating frames (samples) improve the image
+    # frames an F12 render runs before it accumulates, for state that converges over frames
+    # (probes, caches, reservoirs); the graph also takes each pass's ``warmup_frames`` and
+    # ``converged()``, and the larger count wins
+    warmup_frames = 0
     cost_rank = 100  # relative cost for AUTO's choice (lower = cheaper)
     # AOV name -> resource name (accumulated and returned; "Combined" comes from "color")
     outputs: dict = {}
