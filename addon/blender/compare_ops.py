@@ -24,11 +24,13 @@ The metrics of the last compare per technique are kept on the scene as JSON in
 ``scene.gi_preview_comparison.results_json`` (PropertyGroup ``GIPreviewComparison``, attached
 by ``register_props()``), and ``draw_comparison(layout, scene)`` draws them as a table.
 
-Long renders: the operator runs as a modal operator when invoked from the UI; each step
-(export + GI Preview render, Cycles reference, metrics and images) runs in its own timer
-event, ``wm.progress_begin/update/end`` shows progress and ESC cancels between steps (a
-Cycles render itself is one blocking call). ``execute`` (scripts, F3 redo, background) runs
-the same steps in one go.
+Long renders: invoked from the UI, the operator runs in the background (``CompareJob``):
+the GI Preview render goes to the GL thread without blocking (``session.submit_render``)
+and the Cycles reference renders in a child process (``reference_worker``: a copy of the
+.blend, the same fair settings and cache); a timer polls both and shows
+``wm.progress_begin/update/end``, and Esc cancels within a fraction of a second, the Cycles
+render included (the child is killed). ``execute`` (scripts, F3 redo, background) runs the
+same steps in one go, with Cycles in this process.
 """
 from __future__ import annotations
 
@@ -186,6 +188,7 @@ class GIPREVIEW_OT_compare(bpy.types.Operator):
     _timer = None
     _steps = None
     _state = None
+    _job = None
 
     @classmethod
     def poll(cls, context):
@@ -279,13 +282,18 @@ class GIPREVIEW_OT_compare(bpy.types.Operator):
     def invoke(self, context, event):
         if context.window is None:
             return self.execute(context)
-        self._steps = self._make_steps(context)
-        self._i = 0
+        job = self._job = CompareJob(self, context)
+        try:
+            job.start()
+        except Exception as e:  # noqa: BLE001 - shown to the user
+            job.cancel()
+            self.report({"ERROR"}, f"Compare with Cycles failed: {e}")
+            return {"CANCELLED"}
         wm = context.window_manager
-        wm.progress_begin(0, len(self._steps))
-        self._timer = wm.event_timer_add(0.05, window=context.window)
+        wm.progress_begin(0, 100)
+        self._timer = wm.event_timer_add(0.1, window=context.window)
         wm.modal_handler_add(self)
-        context.workspace.status_text_set(f"GI Preview compare: {self._steps[0][0]}... (Esc to cancel)")
+        context.workspace.status_text_set(f"GI Preview compare: {job.label}... (Esc to cancel)")
         return {"RUNNING_MODAL"}
 
     def _finish(self, context):
@@ -297,30 +305,117 @@ class GIPREVIEW_OT_compare(bpy.types.Operator):
         context.workspace.status_text_set(None)
 
     def modal(self, context, event):
+        job = self._job
         if event.type == "ESC":
+            ms = job.cancel()
             self._finish(context)
-            self.report({"WARNING"}, "Compare with Cycles cancelled")
+            self.report({"WARNING"}, f"Compare with Cycles cancelled ({ms:.0f} ms)")
             return {"CANCELLED"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
-        label, fn = self._steps[self._i]
         try:
-            fn()
+            ready = job.poll()
+            if ready:
+                job.finish()
         except Exception as e:  # noqa: BLE001
+            job.cancel()
             self._finish(context)
-            self.report({"ERROR"}, f"Compare with Cycles failed ({label}): {e}")
+            self.report({"ERROR"}, f"Compare with Cycles failed ({job.label}): {e}")
             return {"CANCELLED"}
-        self._i += 1
-        context.window_manager.progress_update(self._i)
-        if self._i < len(self._steps):
+        context.window_manager.progress_update(int(100 * job.fraction))
+        if not ready:
             context.workspace.status_text_set(
-                f"GI Preview compare: {self._steps[self._i][0]}... (Esc to cancel)")
+                f"GI Preview compare: {job.label} {100 * job.fraction:.0f}%... (Esc to cancel)")
             return {"RUNNING_MODAL"}
         self._finish(context)
         self._report_done()
         for area in getattr(context.screen, "areas", []):
             area.tag_redraw()
         return {"FINISHED"}
+
+
+class CompareJob:
+    """The comparison run in the background (the modal operator's work), polled from a timer.
+
+    ``start()`` exports the scene (main thread, short), submits the GI Preview render to the
+    GL thread (``session.submit_render``: one frame at a time, the viewport keeps drawing)
+    and starts the Cycles reference in a child process (``reference_worker.launch``; a cached
+    reference is used at once). ``poll()`` returns True when both are done (``fraction``
+    and ``label`` say where it is); ``finish()`` measures and fills the images and render
+    slots. ``cancel()`` stops the GI Preview render at its next frame and kills the Cycles
+    process; it returns how many milliseconds that took."""
+
+    def __init__(self, op, context, *, reference_process=None):
+        self.op = op
+        self.context = context
+        self.scene = context.scene
+        self.steps = dict(op._make_steps(context))  # label -> fn (measure, slots are reused)
+        self.st = op._state
+        self.future = None
+        self.ref_proc = None
+        self.launch = reference_process
+        self.label = "Exporting"
+        self.fraction = 0.0
+        self.cancelled = False
+
+    def start(self):
+        from . import reference as R
+        from . import reference_worker as W
+        from .export import export_scene
+        from ..render import session
+
+        st, scene = self.st, self.scene
+        dg = R.evaluated_depsgraph(scene, self.context.view_layer)
+        sd = export_scene(dg)
+        st["fingerprint"] = sd.fingerprint()
+        st["size"] = w, h = (sd.width, sd.height)
+        self.future = session.submit_render(sd, st["technique"], st["quality"], st["samples"],
+                                            session="final", priority=session.PRIORITY_NORMAL)
+        ref = None
+        if self.op.use_cache:
+            ref = W.cached_reference(scene, st["kind"], self.op.ref_spp, width=w, height=h,
+                                     fingerprint=st["fingerprint"])
+        if ref is not None:
+            st["ref"] = ref
+        else:
+            launch = self.launch or W.launch
+            self.ref_proc = launch(scene, st["kind"], self.op.ref_spp, width=w, height=h,
+                                   fingerprint=st["fingerprint"])
+        self.label = "Rendering GI Preview and the Cycles reference"
+
+    def poll(self) -> bool:
+        st = self.st
+        if self.ref_proc is not None and "ref" not in st:
+            ref = self.ref_proc.poll()  # raises with the child's output if it failed
+            if ref is not None:
+                st["ref"] = ref
+        ours = self.future.progress if not self.future.done() else 1.0
+        theirs = 1.0 if "ref" in st else (self.ref_proc.progress if self.ref_proc is not None else 0.0)
+        self.fraction = 0.9 * (0.5 * ours + 0.5 * theirs)
+        if self.future.done() and "ours" not in st:
+            st["ours"] = self.future.result()
+        if "ours" in st and "ref" in st:
+            self.label = "Measuring"
+            return True
+        self.label = ("Rendering the Cycles reference" if "ours" in st else
+                      "Rendering GI Preview" if "ref" in st else "Rendering GI Preview and the Cycles reference")
+        return False
+
+    def finish(self):
+        self.steps["Measuring"]()
+        self.label = "Filling render slots"
+        self.steps["Filling render slots"]()
+        self.fraction = 1.0
+
+    def cancel(self) -> float:
+        """Stop everything now; the milliseconds until the Cycles process was gone."""
+        t0 = time.perf_counter()
+        self.cancelled = True
+        if self.future is not None:
+            self.future.cancel_event.set()
+        if self.ref_proc is not None:
+            self.ref_proc.kill()
+        return (time.perf_counter() - t0) * 1e3
 
 
 def _fmt(v, f="{:.4g}"):
