@@ -6,6 +6,7 @@ import os
 import re
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -34,7 +35,8 @@ def test_gi_compare_cornell(tmp_path):
     env = dict(os.environ)
     env["XDG_CACHE_HOME"] = str(tmp_path / "cache")  # hermetic reference cache
     cmd = [sys.executable, str(SCRIPT), "cornell", "--techniques", "DIRECT", "--res", "64",
-           "--ref-spp", "64", "--frames", "2", "--quality", "0,1", "--out", str(out)]
+           "--ref-spp", "64", "--frames", "2", "--quality", "0,1", "--eevee-samples", "1,2,4",
+           "--out", str(out)]
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=900, env=env)
     assert p.returncode == 0, p.stdout[-3000:] + p.stderr[-3000:]
     assert "[gi_compare" in p.stdout  # progress lines
@@ -57,6 +59,7 @@ def test_gi_compare_cornell(tmp_path):
         assert isinstance(e["effects"], list) and isinstance(e["skipped_passes"], list)
         assert "speedup" in e["speedup"] and "reason" in e["speedup"]
         assert 0 <= e["relmse"] and 0 <= e["flip"] <= 1 and -1 <= e["ssim"] <= 1
+    _check_setup_and_baselines(res, out)
     d = {e["quality"]: e for e in entries if e["reference"] == "direct"}
     f = {e["quality"]: e for e in entries if e["reference"] == "full"}
     assert d[1]["relmse"] < f[1]["relmse"]  # the direct reference fits a direct-light technique better
@@ -69,6 +72,102 @@ def test_gi_compare_cornell(tmp_path):
     assert len(imgs) >= 1 + 2 * 3  # references + (ours, Cycles, error) per entry
     assert all(base64.b64decode(i)[:8] == b"\x89PNG\r\n\x1a\n" for i in imgs)
     assert "<svg" in html and "DIRECT q1" in html
+
+
+def _check_setup_and_baselines(res, out):
+    """The public contract of issue 8: setup_ms per row, baselines.{cycles, cycles_denoised,
+    eevee} with {spp, time_ms, relmse, flip, ssim}, per-frame times without setup, and an
+    equal-error speed-up (or its bound) against every baseline."""
+    for e in res["results"]:
+        assert _finite(e["setup_ms"]) and e["setup_ms"] > 0, e["setup_ms"]
+        assert e["setup"]["export_ms"] > 0 and e["setup"]["renderer_ms"] >= 0
+        assert e["setup_ms"] == pytest.approx(e["setup"]["export_ms"] + e["setup"]["renderer_ms"])
+        # per-frame time x samples: the setup is not in time_ms
+        assert e["time_ms"] == pytest.approx(e["frame_ms"] * e["samples"])
+        print(f"{e['technique']} q{e['quality']} vs {e['reference']}: {e['time_ms']:.1f} ms, "
+              f"setup {e['setup_ms']:.0f} ms, relMSE {e['relmse']:.4g}")
+    b = res["baselines"]
+    assert set(b) == {"cycles", "cycles_denoised", "eevee"}
+    assert [p["spp"] for p in b["cycles"]] == [1, 2, 4, 8, 16]
+    assert [p["spp"] for p in b["cycles_denoised"]] == [1, 2, 4, 8, 16]
+    assert [p["spp"] for p in b["eevee"]] == [1, 2, 4]
+    assert b["cycles"] == res["cycles_curve"]  # the old top-level key stays, same numbers
+    for name, pts in b.items():
+        setup = res["baselines_setup"][name]
+        assert _finite(setup["setup_ms"]) and setup["setup_ms"] >= 0
+        for p in pts:
+            for k in ("spp", "time_ms", "relmse", "flip", "ssim"):
+                assert _finite(p[k]), (name, k, p)
+            assert 0 < p["time_ms"] <= p["wall_ms"] * 1.5 + 1.0, (name, p)  # setup left out
+            assert p["setup_ms"] == pytest.approx(setup["setup_ms"])
+            print(f"{name} {p['spp']:>2} spp: {p['time_ms']:8.1f} ms/frame ({p['wall_ms']:.0f} ms wall), "
+                  f"relMSE {p['relmse']:.4g}")
+    # EEVEE compiles shaders in its first renders: measured, and kept out of every point
+    assert res["baselines_setup"]["eevee"]["warmup_renders"] == 2
+    # the denoiser does what it is for: at 16 spp far closer to the reference than plain Cycles
+    assert b["cycles_denoised"][-1]["relmse"] < 0.5 * b["cycles"][-1]["relmse"]
+    # EEVEE's ray-traced GI recovers indirect light that DIRECT (direct light only) lacks
+    direct_full = min(e["relmse"] for e in res["results"] if e["reference"] == "full")
+    assert b["eevee"][-1]["relmse"] < direct_full
+    for e in res["results"]:
+        sps = e["speedups"]
+        assert set(sps) == ({"cycles", "cycles_denoised", "eevee"} if e["reference"] == "full" else {"cycles"})
+        for name, s in sps.items():
+            assert s["speedup"] is not None or s["bound"] or s["reason"], (name, s)
+            if s["speedup"] is not None:
+                assert s["speedup"] > 0
+    assert {(s["baseline"]) for s in res["speedups"]} == {"cycles", "cycles_denoised", "eevee"}
+    svg = (out / "chart.svg").read_text()
+    for label in ("Cycles (spp)", "Cycles + OIDN (spp)", "EEVEE ray tracing (samples)"):
+        assert label in svg
+    html = (out / "report.html").read_text()
+    assert "Equal-error speed-ups" in html and "vs EEVEE (ray tracing)" in html and "setup ms" in html
+    assert (out / "baseline_eevee_4spp.png").exists()
+
+
+GL_MISSING = "GI Preview needs OpenGL 4.9"
+
+
+@needs_renderer
+def test_gi_compare_reports_missing_opengl(tmp_path):
+    """Without OpenGL 4.3 (here: 4.9 demanded) the batch script stops at once with the
+    engine's message and the apt-get hint, exit status 2, no traceback, no Cycles work."""
+    env = dict(os.environ, GI_PREVIEW_GL_REQUIRE="490", XDG_CACHE_HOME=str(tmp_path / "cache"))
+    p = subprocess.run([sys.executable, str(SCRIPT), "cornell", "--techniques", "DIRECT", "--res", "16",
+                        "--out", str(tmp_path / "out")], capture_output=True, text=True, timeout=300, env=env)
+    assert p.returncode == 2, (p.returncode, p.stdout[-2000:], p.stderr[-2000:])
+    assert f"gi_compare: {GL_MISSING}" in p.stderr and "libegl1" in p.stderr, p.stderr[-2000:]
+    assert "Traceback" not in p.stderr
+    assert "Cycles reference" not in p.stdout  # failed before any Cycles render
+
+
+@needs_renderer
+def test_compare_operator_reports_missing_opengl(tmp_path):
+    """The Compare with Cycles operator reports the missing OpenGL as its error."""
+    code = textwrap.dedent(f"""
+        import os, sys
+        os.environ["GI_PREVIEW_GL_REQUIRE"] = "490"
+        sys.path.insert(0, {str(Path(__import__("gi_preview").__file__).parent.parent)!r})
+        import bpy, gi_preview
+        gi_preview.register()
+        from gi_preview.blender.demo_scenes import build_demo
+        sc = build_demo("cornell", resolution=16)
+        with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
+            try:
+                bpy.ops.gi_preview.compare("EXEC_DEFAULT", ref_spp=4, use_cache=False)
+                print("NO ERROR")
+            except RuntimeError as exc:
+                print("ERROR:", exc)
+        print("ENGINE", sc.render.engine)
+        print("ALIVE")
+    """)
+    env = dict(os.environ, BLENDER_USER_RESOURCES=str(tmp_path), XDG_CACHE_HOME=str(tmp_path / "cache"))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=300)
+    text = out.stdout + out.stderr
+    assert "ALIVE" in text, text[-2000:]
+    assert f"Compare with Cycles failed: {GL_MISSING}" in text, text[-2000:]
+    assert "libegl1" in text
+    assert "ENGINE GI_PREVIEW" in text  # the scene's engine untouched
 
 
 @needs_renderer

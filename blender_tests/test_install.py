@@ -144,3 +144,23 @@ def test_zip_installs_enables_and_uses_bundled_wheels(tmp_path):
     assert isinstance(out["gl"], list), f"bundled moderngl could not open an EGL context: {out['gl']}\n{log}"
 
     assert "GI_PREVIEW" not in out["engines_after_disable"], log
+
+
+def test_manifest_platforms_match_opengl_43():
+    """Only platforms with OpenGL 4.3 compute: no macOS (Apple's OpenGL stops at 4.1), no
+    macOS wheel, one wheel of each bundled package per listed platform; the builder refuses
+    a manifest that lists macOS again, naming the reason."""
+    import pytest
+
+    build = _load_build_module()
+    manifest = build.read_manifest()
+    assert manifest["platforms"] == ["linux-x64", "windows-x64"]
+    assert not [w for w in manifest["wheels"] if "macosx" in w]
+    for package in ("moderngl", "glcontext", "flip_evaluator"):
+        tags = [w for w in manifest["wheels"] if Path(w).name.startswith(package + "-")]
+        assert len(tags) == 2 and any("win_amd64" in w for w in tags) and any("linux" in w for w in tags), tags
+    build.check_platforms(manifest)  # the real manifest passes
+    with pytest.raises(SystemExit, match="OpenGL stops at 4.1"):
+        build.check_platforms({**manifest, "platforms": manifest["platforms"] + ["macos-arm64"]})
+    with pytest.raises(SystemExit, match="macosx"):
+        build.check_platforms({**manifest, "wheels": manifest["wheels"] + ["./wheels/x-1-cp311-cp311-macosx_11_0_arm64.whl"]})

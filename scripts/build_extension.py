@@ -20,6 +20,10 @@ Steps:
 5. Run ``validate`` on every zip and print the zip paths; the last line names the zip
    for the platform this script runs on.
 
+Platforms: Linux x64 and Windows x64. There is no macOS zip: GI Preview needs OpenGL 4.3
+compute shaders and Apple's OpenGL stops at 4.1 (see ``UNSUPPORTED_PLATFORMS``); the
+manifest lists no macOS platform or wheel, and :func:`check_platforms` refuses one.
+
 Only the Python standard library and ``bpy`` (to locate ``blender_ext.py``) are used.
 """
 
@@ -53,6 +57,23 @@ DIST_DIR = REPO / "dist"
 PYTHON_VERSION = "3.11"
 
 IGNORE = shutil.ignore_patterns("__pycache__", "*.pyc", "*.pyo", ".DS_Store")
+
+# Blender platforms GI Preview cannot run on, and why (checked against the manifest).
+UNSUPPORTED_PLATFORMS = {
+    "macos-arm64": "Apple's OpenGL stops at 4.1: no compute shaders (GI Preview needs OpenGL 4.3)",
+    "macos-x64": "Apple's OpenGL stops at 4.1: no compute shaders (GI Preview needs OpenGL 4.3)",
+}
+
+
+def check_platforms(manifest: dict) -> None:
+    """Refuse a manifest that lists a platform (or bundles a wheel for one) GI Preview
+    cannot run on: a zip for it would install and then fail on the first render."""
+    bad = [p for p in manifest.get("platforms", []) if p in UNSUPPORTED_PLATFORMS]
+    bad_wheels = [w for w in manifest.get("wheels", []) if "macosx" in w]
+    if bad or bad_wheels:
+        why = "; ".join(f"{p}: {UNSUPPORTED_PLATFORMS[p]}" for p in bad) or UNSUPPORTED_PLATFORMS["macos-arm64"]
+        raise SystemExit(f"blender_manifest.toml lists unsupported platforms/wheels "
+                         f"{bad + bad_wheels}: {why}")
 
 
 def read_manifest() -> dict:
@@ -172,6 +193,7 @@ def blender_ext_script() -> str:
 
 
 def build(manifest: dict) -> list[Path]:
+    check_platforms(manifest)
     wheels = fetch_wheels(manifest)
     src = stage(manifest, wheels)
     tool = blender_ext_script()
@@ -230,7 +252,8 @@ def main(argv: list[str] | None = None) -> int:
     if current in zips:
         print(f"zip for this platform ({blender_platform_of_this_system()}): {current}")
     else:
-        print(f"warning: no zip for this platform ({blender_platform_of_this_system()})", file=sys.stderr)
+        why = UNSUPPORTED_PLATFORMS.get(blender_platform_of_this_system(), "not listed in the manifest")
+        print(f"warning: no zip for this platform ({blender_platform_of_this_system()}): {why}", file=sys.stderr)
     return 0
 
 

@@ -621,12 +621,13 @@ def baseline_curve(scene, baseline: str, spp_list, reference: Reference, *, seed
     """A baseline's error-vs-time curve against ``reference``, per-frame time apart from setup.
 
     Each spp of ``spp_list`` is rendered once (never cached: the times are the point), after
-    untimed warm-up renders at the smallest spp (``warmup``: a count, or True for the
-    default: one for Cycles, which loads its kernels and initialises OpenImageDenoise; two
-    for EEVEE, whose first *two* renders in a process compile shaders, measured 6.3 and
-    6.0 s against 2.5 and 3.3 s later at 128 px with a warm Mesa shader cache, about 35 s
-    for the first with a cold one). ``warmup_ms`` is their total; minus the timed renders
-    at the same spp it is reported as ``first_render_extra_ms``.
+    untimed warm-up renders (``warmup``: a count, or True for the default): one at the
+    smallest spp for Cycles (it loads its kernels, OpenImageDenoise initialises); for EEVEE
+    one at the smallest and one at the next spp, because EEVEE compiles shaders in its
+    first render (about 35 s on llvmpipe with a cold Mesa shader cache, 4 s with a warm
+    one) and again in its first render with more than one sample (+3 s at 64-128 px,
+    measured: 6.0 s for 2 samples the first time, 3.3 s later). ``warmup_ms`` is their total;
+    minus the timed renders at the same spp it is reported as ``first_render_extra_ms``.
 
     Timing (:func:`..compare.sweep.fit_setup`): the wall times are fitted as
     ``setup + per_sample * spp``. ``setup`` is what every render call pays once whatever the
@@ -648,9 +649,10 @@ def baseline_curve(scene, baseline: str, spp_list, reference: Reference, *, seed
         raise ValueError(f"baseline {baseline}: spp list must hold positive integers, got {spp_list}")
     kw = dict(kind=reference.kind, seed=seed, width=reference.width, height=reference.height, cancel=cancel)
     n_warm = (2 if baseline == "eevee" else 1) if warmup is True else int(warmup)
+    warm_spp = [spp_list[min(i, len(spp_list) - 1)] for i in range(n_warm)]
     warm_ms = None
-    for _ in range(n_warm):
-        _, ms = render_baseline(scene, baseline, spp_list[0], **kw)
+    for spp in warm_spp:
+        _, ms = render_baseline(scene, baseline, spp, **kw)
         warm_ms = (warm_ms or 0.0) + ms
     pts = []
     for i, spp in enumerate(spp_list):
@@ -671,6 +673,7 @@ def baseline_curve(scene, baseline: str, spp_list, reference: Reference, *, seed
     return {"baseline": baseline, "label": BASELINE_LABELS[baseline], "kind": reference.kind,
             "setup_ms": setup, "per_sample_ms": fit["per_sample_ms"], "fit": fit,
             "warmup_ms": warm_ms,
-            "warmup_renders": n_warm,
-            "first_render_extra_ms": (warm_ms - n_warm * pts[0]["wall_ms"]) if warm_ms is not None else None,
+            "warmup_renders": n_warm, "warmup_spp": warm_spp,
+            "first_render_extra_ms": (warm_ms - sum(next(p["wall_ms"] for p in pts if p["spp"] == w)
+                                                    for w in warm_spp)) if warm_ms is not None else None,
             "points": pts}
