@@ -27,7 +27,8 @@ DEMO_SCENES: tuple[tuple[str, str, str], ...] = (
     ("emissive_panel", "Emissive Panel",
      "A room lit only by an emissive mesh panel (no lamps, black world)"),
     ("many_lights", "Many Lights",
-     "A floor and a few objects lit by 24 small coloured point lights"),
+     "A floor and a few objects lit by 256 small point lights of many colours and three "
+     "emissive strips"),
 )
 _IDS = tuple(d[0] for d in DEMO_SCENES)
 SCENE_PREFIX = "GI Preview Demo: "
@@ -261,7 +262,14 @@ def _emissive_panel(b: _Builder):
     b.scene.world = make_world(b.n("black"), (0, 0, 0), 0.0)
 
 
+MANY_LIGHTS_COUNT = 256
+
+
 def _many_lights(b: _Builder):
+    """256 small point lights of many colours on a jittered 16 x 16 grid over the floor
+    (heights 0.25-1.2 m) plus three emissive strips (mesh lights): DIRECT's many-light path
+    (tile culling, shadow-map budget, ray-traced shadows) and light sampling in every
+    ray-tracing technique."""
     floor = make_principled(b.n("floor"), (0.6, 0.6, 0.6), 0.4)
     b.quad("floor", [(-8, -8, 0), (8, -8, 0), (8, 8, 0), (-8, 8, 0)], floor)
     grey = make_principled(b.n("grey"), (0.7, 0.7, 0.7), 0.5)
@@ -271,12 +279,19 @@ def _many_lights(b: _Builder):
           rotation=(0, 0, math.radians(30)))
     b.sphere("small", 0.4, make_principled(b.n("metal"), (0.9, 0.9, 0.9), 0.15, 1.0),
              (-1.2, -1.6, 0.4))
-    for i in range(24):
-        ang = 2 * math.pi * i / 24
-        r = 3.0 + 0.6 * (i % 2)
-        rgb = colorsys.hsv_to_rgb(i / 24, 0.8, 1.0)
-        b.light(f"point_{i:02d}", "POINT", (r * math.cos(ang), r * math.sin(ang), 0.3 + 0.4 * (i % 3)),
-                energy=15.0, color=rgb, shadow_soft_size=0.05)
+    for k, (x, hue) in enumerate(((-4.5, 0.0), (0.0, 0.35), (4.5, 0.6))):
+        rgb = colorsys.hsv_to_rgb(hue, 0.7, 1.0)
+        strip = make_emission(b.n(f"strip_{k}"), rgb, 6.0)
+        b.box(f"strip_{k}", (0.12, 7.0, 0.06), strip, location=(x, 3.5, 0.03))
+    rng = np.random.default_rng(7)
+    n = 16
+    for i in range(MANY_LIGHTS_COUNT):
+        gx, gy = i % n, i // n
+        x = -7.5 + 15.0 * (gx + 0.2 + 0.6 * rng.random()) / n
+        y = -7.5 + 15.0 * (gy + 0.2 + 0.6 * rng.random()) / n
+        z = 0.25 + 0.95 * rng.random()
+        rgb = colorsys.hsv_to_rgb(float(rng.random()), 0.75, 1.0)
+        b.light(f"point_{i:03d}", "POINT", (x, y, z), energy=3.0, color=rgb, shadow_soft_size=0.05)
     b.camera((0, -7.5, 4.5), (0, 0, 0.5), lens=30.0)
     b.scene.world = make_world(b.n("night"), (0.02, 0.02, 0.03), 1.0)
 

@@ -232,6 +232,7 @@ class SceneRT:
             self.buffers = RtBuffers(self.ctx, SceneBVH.from_scene(scene), self.bindings)
             self._geo_key, self._inst_key = key, inst_key
             self.bvh_ms = (time.perf_counter() - t0) * 1e3
+            gs.setup_ms = getattr(gs, "setup_ms", 0.0) + self.bvh_ms  # one-time work (session stats)
             self.blas_builds += 1
             self.tlas_builds += 1
         elif inst_key != self._inst_key:
@@ -239,6 +240,7 @@ class SceneRT:
             self.buffers.update_instances(scene)  # objects moved: top level only
             self._inst_key = inst_key
             self.bvh_ms = (time.perf_counter() - t0) * 1e3
+            gs.setup_ms = getattr(gs, "setup_ms", 0.0) + self.bvh_ms
             self.tlas_builds += 1
         table = light_table(scene, gs.light_array, gs.light_count, gs.emitters.groups if gs.emitters else [])
         data = table.tobytes()

@@ -239,7 +239,8 @@ class Session:
             self.rc.barrier_external(["gbuffer.position", "gbuffer.normal", "gbuffer.albedo", "gbuffer.geonormal"])
             aovs.update(self._gbuffer_aovs(scene))
         effects = sorted({e.value for p in plan.active for e in p.provides} & {e.value for e in analysis.needed})
-        warnings = list(scene.warnings)
+        # what the scene export and the passes that ran approximated (e.g. DIRECT's many lights)
+        warnings = list(scene.warnings) + [n for p in plan.active for n in getattr(p, "notes", ())]
         return RenderResult(
             image=image, aovs=aovs, technique=technique, quality=quality, samples=self.acc_count,
             pass_ms=pass_ms, frame_ms=float(statistics.median(frame_times)) if frame_times else 0.0,

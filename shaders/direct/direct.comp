@@ -7,6 +7,16 @@
 // uniform radiance times the lobes' albedos, shadowed by the world visibility from the
 // orthographic maps the shadow pass renders along sampled directions each frame.
 // Reads the G-buffer; writes color, GI_Direct, Emit and the world's glossy term (for SSR).
+//
+// Many lights (docs/techniques/DIRECT.md): each pixel shades the lights of its 16x16 tile's
+// list (light_cull.comp: lights whose range of influence meets the tile). A listed light
+// with a shadow map is shadowed by it; listed lights that cast shadows but got no shadow map
+// (over the shadow pass's budget) are shadowed by ray tracing through the shared scene
+// component (lib/scene_rt.glsl): u_rt_shadow_rays lights per pixel per frame, chosen by
+// weighted reservoir sampling in proportion to their unshadowed contribution, one shadow ray
+// to a point sampled on each (unbiased: c_j V_j W / w_j). Lights not in the tile's list are
+// estimated with u_far_samples light samples per pixel chosen by power (select_light), counted
+// only when the chosen light is not listed (unbiased). Both ray-traced parts need DIRECT_RT.
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/rng.glsl"
@@ -15,6 +25,9 @@
 #include "lib/lights.glsl"
 #include "lib/shadows.glsl"
 #include "lib/albedo.glsl"
+#ifdef DIRECT_RT
+#include "lib/scene_rt.glsl"
+#endif
 
 layout(local_size_x = 8, local_size_y = 8) in;
 
@@ -36,6 +49,13 @@ uniform int u_glossy_samples;
 uniform int u_mesh_exact_max;
 uniform int u_world_first;
 uniform int u_world_count;  // 0: the world lights nothing (black, or no world views)
+// per-tile light lists (light_cull.comp)
+layout(std430, binding = 6) readonly buffer TileLights { int tile_lights[]; };
+uniform int u_tile_capacity;
+uniform int u_tiles_x;
+uniform int u_tile_size;
+uniform int u_rt_shadow_rays;  // reservoirs (shadow rays) per pixel for listed lights without a shadow map
+uniform int u_far_samples;     // light samples per pixel for the lights not listed
 
 // Glossy lobe only: f*cos and its pdf under visible-normal sampling.
 vec3 glossy_fcos(Surface s, vec3 N, vec3 V, vec3 L) { return eval_principled(s, N, V, L).glossy; }
@@ -56,6 +76,18 @@ vec3 glossy_light_sample(Light L, Surface s, vec3 P, vec3 N, vec3 V, vec3 u) {
     if (ls.pdf <= 0.0) return vec3(0.0);
     float pb = glossy_pdf(s, N, V, ls.dir);
     return ls.Li * glossy_fcos(s, N, V, ls.dir) * power_heuristic(ls.pdf, pb) / (ls.pdf * float(u_glossy_samples));
+}
+
+// The BSDF half of the glossy MIS: one visible-normal direction; if it sees light L
+// (light_ray_hit, the one copy PT uses too) its radiance weighted against light sampling.
+vec3 glossy_bsdf_sample(Light L, Surface s, vec3 P, vec3 N, vec3 V, vec2 u) {
+    vec3 w2 = sample_glossy(s, N, V, u);
+    vec3 Le;
+    float pl;
+    if (!light_ray_hit(L, P, w2, 0.0, T_INF, Le, pl)) return vec3(0.0);
+    float pb = glossy_pdf(s, N, V, w2);
+    if (pb <= 0.0) return vec3(0.0);
+    return Le * glossy_fcos(s, N, V, w2) * power_heuristic(pb, pl) / (pb * float(u_glossy_samples));
 }
 
 // Diffuse BRDF constant (Lambert under the specular layer), i.e. f_d = this / 1.
@@ -86,17 +118,10 @@ vec3 shade_light(int li, Surface s, vec3 P, vec3 N, vec3 Ng, vec3 V, inout Rng r
         // sphere light: diffuse by the cosine law (exact above the horizon)
         result += I * diffuse_brdf(s, N, V) * max(NoL, 0.0) / dist2;
         if (has_glossy) {
-            vec3 Ls = I / (PI * r * r);
-            float pl = cone_pdf(sqrt(max(0.0, 1.0 - r * r / dist2)));
             for (int k = 0; k < u_glossy_samples; ++k) {
                 vec4 u = rng_next4(rng);
                 result += glossy_light_sample(L, s, P, N, V, u.xyz);
-                vec3 w2 = sample_glossy(s, N, V, u.zw);
-                if (intersect_sphere(L.pos_type.xyz, r, P, w2) > 0.0) {
-                    float pb2 = glossy_pdf(s, N, V, w2);
-                    if (pb2 > 0.0)
-                        result += Ls * glossy_fcos(s, N, V, w2) * power_heuristic(pb2, pl) / (pb2 * float(u_glossy_samples));
-                }
+                result += glossy_bsdf_sample(L, s, P, N, V, u.zw);
             }
         }
         return result;
@@ -111,39 +136,22 @@ vec3 shade_light(int li, Surface s, vec3 P, vec3 N, vec3 Ng, vec3 V, inout Rng r
         }
         result += E * diffuse_brdf(s, N, V) * max(dot(N, wi), 0.0);
         if (has_glossy) {
-            float sa = sin(half_angle);
-            vec3 Ls = E / (PI * sa * sa);
-            float cos_max = cos(half_angle);
-            float pl = cone_pdf(cos_max);
             for (int k = 0; k < u_glossy_samples; ++k) {
                 vec4 u = rng_next4(rng);
                 result += glossy_light_sample(L, s, P, N, V, u.xyz);
-                vec3 w2 = sample_glossy(s, N, V, u.zw);
-                if (dot(w2, wi) >= cos_max) {
-                    float pb2 = glossy_pdf(s, N, V, w2);
-                    if (pb2 > 0.0)
-                        result += Ls * glossy_fcos(s, N, V, w2) * power_heuristic(pb2, pl) / (pb2 * float(u_glossy_samples));
-                }
+                result += glossy_bsdf_sample(L, s, P, N, V, u.zw);
             }
         }
         return result;
     }
     if (type == LIGHT_AREA) {
         vec3 Le = L.color.rgb;
-        float area = max(L.axis_v.w, 1e-12);
         result += Le * diffuse_brdf(s, N, V) * area_light_irradiance_factor(L, P, N);
         if (has_glossy) {
             for (int k = 0; k < u_glossy_samples; ++k) {
                 vec4 u = rng_next4(rng);
                 result += glossy_light_sample(L, s, P, N, V, u.xyz);
-                vec3 w2 = sample_glossy(s, N, V, u.zw);
-                float t = intersect_area_light(L, P, w2);
-                if (t > 0.0) {
-                    float pb2 = glossy_pdf(s, N, V, w2);
-                    float pl2 = area_to_solid_angle_pdf(P, P + t * w2, L.dir_radius.xyz, area);
-                    if (pb2 > 0.0)
-                        result += Le * glossy_fcos(s, N, V, w2) * power_heuristic(pb2, pl2) / (pb2 * float(u_glossy_samples));
-                }
+                result += glossy_bsdf_sample(L, s, P, N, V, u.zw);
             }
         }
         return result;
@@ -181,6 +189,33 @@ vec3 shade_light(int li, Surface s, vec3 P, vec3 N, vec3 Ng, vec3 V, inout Rng r
     return vec3(0.0);
 }
 
+#ifdef DIRECT_RT
+#ifndef RT_MAX_RESERVOIRS
+#define RT_MAX_RESERVOIRS 8
+#endif
+// Visibility of one point sampled on light L from the offset origin Po (0 or 1): the
+// ray-traced counterpart of light_visibility for lights without a shadow map.
+float rt_light_visibility(Light L, vec3 Po, vec3 Ng, inout Rng rng) {
+    vec4 u = rng_next4(rng);
+    LightSample ls = sample_light(L, Po, u.xy, u.z);
+    if (ls.pdf <= 0.0) return 1.0;         // nothing sampled (inside a sphere light): unshadowed
+    if (dot(ls.dir, Ng) <= 0.0) return 0.0;  // below the geometric horizon
+    return scene_occluded(Po, ls.dir, 0.0, ls.dist * (1.0 - 1e-4)) ? 0.0 : 1.0;
+}
+
+// Is light j in the tile's list (ascending indices)?
+bool tile_listed(int base, int listed, int j) {
+    int lo = 0, hi = listed - 1;
+    while (lo <= hi) {
+        int mid = (lo + hi) / 2;
+        int v = tile_lights[base + 1 + mid];
+        if (v == j) return true;
+        if (v < j) lo = mid + 1; else hi = mid - 1;
+    }
+    return false;
+}
+#endif
+
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     ivec2 size = imageSize(o_color);
@@ -201,11 +236,55 @@ void main() {
     Surface s = make_surface(materials[mid], texelFetch(u_gb_albedo, px, 0).rgb);
     Rng rng = rng_init(uvec2(px), u_sample, 1u);
     vec3 direct = vec3(0.0);
-    for (int i = 0; i < u_light_count; ++i) {
+    int tile = (px.y / u_tile_size) * u_tiles_x + px.x / u_tile_size;
+    int base = tile * (u_tile_capacity + 1);
+    int listed = tile_lights[base];
+#ifdef DIRECT_RT
+    // shadow rays leave from the G-buffer point moved off the surface (scale-aware: the
+    // rasterised position is not exactly on the BVH's triangle)
+    vec3 Po = rt_offset_ray(P + Ng * (2e-5 * length(P - u_camera_pos) + 1e-6), Ng);
+    int r_idx[RT_MAX_RESERVOIRS];
+    vec3 r_c[RT_MAX_RESERVOIRS];
+    float r_w[RT_MAX_RESERVOIRS];
+    for (int j = 0; j < RT_MAX_RESERVOIRS; ++j) { r_idx[j] = -1; r_c[j] = vec3(0.0); r_w[j] = 0.0; }
+    float wsum = 0.0;
+    int K = min(u_rt_shadow_rays, RT_MAX_RESERVOIRS);
+#endif
+    for (int k = 0; k < listed; ++k) {
+        int i = tile_lights[base + 1 + k];
         vec3 c = shade_light(i, s, P, N, Ng, V, rng);
         if (max3(c) <= 0.0) continue;
+#ifdef DIRECT_RT
+        Light L = lights[i];
+        if (L.axis_w.w > 0.5 && L.shadow.y < 0.5 && K > 0) {  // casts shadows, no shadow map
+            float w = max(luminance(c), 1e-30);
+            wsum += w;
+            for (int j = 0; j < K; ++j) {
+                if (rng_next(rng) * wsum <= w) { r_idx[j] = i; r_c[j] = c; r_w[j] = w; }
+            }
+            continue;
+        }
+#endif
         direct += c * light_visibility(lights[i], P, N, Ng);
     }
+#ifdef DIRECT_RT
+    for (int j = 0; j < K; ++j) {
+        if (r_idx[j] < 0) continue;
+        direct += r_c[j] * (rt_light_visibility(lights[r_idx[j]], Po, Ng, rng) * wsum / (r_w[j] * float(K)));
+    }
+    // lights outside the tile's list: one light by power, counted when it is not listed
+    for (int f = 0; f < u_far_samples && listed < u_light_count; ++f) {
+        float sel;
+        int j = select_light(rng_next(rng), sel);
+        if (sel <= 0.0 || tile_listed(base, listed, j)) continue;
+        vec3 c = shade_light(j, s, P, N, Ng, V, rng);
+        if (max3(c) <= 0.0) continue;
+        Light L = lights[j];
+        float vis = L.axis_w.w < 0.5 ? 1.0
+                  : (L.shadow.y > 0.5 ? light_visibility(L, P, N, Ng) : rt_light_visibility(L, Po, Ng, rng));
+        direct += c * (vis / (sel * float(u_far_samples)));
+    }
+#endif
     vec3 world_spec = vec3(0.0);
     if (u_world_count > 0) {
         // the glossy lobe's dominant direction (Lagarde & de Rousiers 2014): R for smooth

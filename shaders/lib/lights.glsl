@@ -143,7 +143,7 @@ bool light_ray_hit(Light L, vec3 o, vec3 d, float tmin, float tmax, out vec3 Le,
         float t = intersect_area_light(L, o, d);
         if (t > tmin && t < tmax) {
             Le = L.color.rgb;
-            pdf = area_to_solid_angle_pdf(o, o + t * d, L.dir_radius.xyz, L.axis_v.w);
+            pdf = area_to_solid_angle_pdf(o, o + t * d, L.dir_radius.xyz, max(L.axis_v.w, 1e-12));
         }
     } else if ((type == LIGHT_POINT || type == LIGHT_SPOT) && L.dir_radius.w > 0.0) {
         float r = L.dir_radius.w;

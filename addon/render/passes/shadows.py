@@ -19,8 +19,22 @@ import numpy as np
 from ..framegraph import BUFFER, HOST, Effect, Param, Pass, Res
 from ..gpu_scene import LIGHT_MESH, set_uniform
 from ..scene_data import LightType
+from .light_cull import LIGHT_CULL, TILE_BOUNDS, light_scores
 
 ATLAS, VIEWS, WORLD_RANGE = "shadow.atlas", "shadow.views", "shadow.world_range"
+SHADOW_SELECTION = "shadow.selection"
+
+
+class ShadowSelection:
+    """Which lights got shadow maps this frame (a host resource): ``mapped`` and ``unmapped``
+    light indices (shadow-casting point, spot, area and mesh lights; suns are always mapped),
+    the ``budget`` and the ``frame`` (FrameState) it was made for."""
+
+    def __init__(self, frame=None, mapped=(), unmapped=(), budget: int = 0):
+        self.frame, self.mapped, self.unmapped, self.budget = frame, list(mapped), list(unmapped), budget
+
+    def release(self):
+        pass
 
 
 class WorldRange:
@@ -81,12 +95,14 @@ class ShadowPass(Pass):
     name = "shadows"
     provides = frozenset({Effect.SHADOWS, Effect.ENVIRONMENT})
     kind = "raster"
-    writes = (ATLAS, VIEWS, WORLD_RANGE)
+    writes = (ATLAS, VIEWS, WORLD_RANGE, SHADOW_SELECTION)
+    optional_reads = (LIGHT_CULL, TILE_BOUNDS)  # the budget ranks lights by the visible tiles
     # sizes depend on the lights: the pass allocates them (managed=False); the views are
     # written from the CPU, the world range is a Python object
     declared = (Res(ATLAS, components=1, dtype="f4", managed=False, check="none"),
                 Res(VIEWS, kind=BUFFER, managed=False, check="none"),
-                Res(WORLD_RANGE, kind=HOST, managed=False, check="none"))
+                Res(WORLD_RANGE, kind=HOST, managed=False, check="none"),
+                Res(SHADOW_SELECTION, kind=HOST, managed=False, check="none"))
     # re-rendered every frame; views of lights without size are reused until the scene changes
     history_resets = frozenset({"geometry", "transforms", "lights", "param_change", "camera_cut"})
     params = (
@@ -95,18 +111,23 @@ class ShadowPass(Pass):
         Param("normal_offset", 2.0, 0.0, 8.0, "normal offset in texels"),
         Param("world_directions", 8, 0, 64, "world light: directions (orthographic maps) sampled per frame"),
         Param("light_samples", 2, 1, 16, "lights with size: points on the light (shadow origins) per frame"),
+        Param("max_shadow_maps", 8, 0, 1024,
+              "shadow-map budget: point, spot, area and mesh lights that get shadow maps (those that "
+              "matter most in view); the others are shadowed by ray tracing in direct_light"),
     )
     quality_ladder = (
-        {"shadow_resolution": 256, "cascades": 2, "world_directions": 4, "light_samples": 1},
-        {"shadow_resolution": 512, "cascades": 3, "world_directions": 8, "light_samples": 2},
-        {"shadow_resolution": 1024, "cascades": 3, "world_directions": 16, "light_samples": 4},
-        {"shadow_resolution": 2048, "cascades": 4, "world_directions": 24, "light_samples": 4},
+        {"shadow_resolution": 256, "cascades": 2, "world_directions": 4, "light_samples": 1, "max_shadow_maps": 4},
+        {"shadow_resolution": 512, "cascades": 3, "world_directions": 8, "light_samples": 2, "max_shadow_maps": 8},
+        {"shadow_resolution": 1024, "cascades": 3, "world_directions": 16, "light_samples": 4, "max_shadow_maps": 16},
+        {"shadow_resolution": 2048, "cascades": 4, "world_directions": 24, "light_samples": 4, "max_shadow_maps": 32},
     )
 
     def __init__(self, quality=None, **props):
         super().__init__(quality, **props)
         self.atlas = self.depth = self.fbo = self.view_buf = None
         self._static_key = None
+        self._mapped = set()
+        self.selection = None
 
     def reset_history(self):
         super().reset_history()
@@ -171,11 +192,13 @@ class ShadowPass(Pass):
         radius = max(float(np.linalg.norm(hi - lo)) * 0.5, 1e-3)
         rng = np.random.default_rng(frame.index * 7919 + 13)
         records = []
+        mapped = self._mapped
         for li, L in enumerate(scene.lights):
-            if L.cast_shadow and float(np.max(L.color)) > 0:
+            if L.cast_shadow and float(np.max(L.color)) > 0 and (L.type == LightType.SUN or li in mapped):
                 records.append({"index": li, "type": int(L.type), "light": L})
         for gi, g in enumerate(rc.scene.emitters.groups):
-            records.append({"index": len(scene.lights) + gi, "type": LIGHT_MESH, "group": g})
+            if len(scene.lights) + gi in mapped:
+                records.append({"index": len(scene.lights) + gi, "type": LIGHT_MESH, "group": g})
         views = []  # (light index, view_proj, origin, ortho, dir, texel, far)
         self._per_group = {}  # light index -> views per shadow origin (6 cube faces, 1, cascades)
         cam = scene.camera
@@ -305,20 +328,54 @@ class ShadowPass(Pass):
         """Does any view change from frame to frame (lights with size, the world light)?"""
         if int(self["world_directions"]) > 0 and float(np.max(scene.world.color)) > 0:
             return True
-        for L in scene.lights:
+        mapped = getattr(self, "_mapped", set())
+        for li, L in enumerate(scene.lights):
+            if L.type == LightType.SUN and L.angle > 1e-5:
+                return True
+            if li not in mapped:  # over the budget: no shadow maps to move
+                continue
             if L.type in (LightType.POINT, LightType.SPOT) and L.radius > 0:
                 return True
-            if L.type == LightType.AREA or (L.type == LightType.SUN and L.angle > 1e-5):
+            if L.type == LightType.AREA:
                 return True
-        return bool(getattr(self, "_has_mesh", False))
+        return bool(getattr(self, "_has_mesh", False)) and any(i >= len(scene.lights) for i in mapped)
+
+    def _select(self, rc, frame) -> ShadowSelection:
+        """The shadow-map budget: every shadow-casting point, spot, area and mesh light when
+        they fit in ``max_shadow_maps``; else the ones with the largest estimated contribution
+        to this frame's visible pixels (light_cull.light_scores over the tiles' G-buffer
+        bounds; without this frame's culling: intensity / squared distance to the camera)."""
+        scene = rc.scene.scene
+        cands = [li for li, L in enumerate(scene.lights)
+                 if L.cast_shadow and float(np.max(L.color)) > 0 and L.type != LightType.SUN]
+        cands += [len(scene.lights) + gi for gi in range(len(rc.scene.emitters.groups))]
+        budget = int(self["max_shadow_maps"])
+        if len(cands) <= budget:
+            return ShadowSelection(frame, cands, [], budget)
+        cull = rc.resources.get(LIGHT_CULL)
+        if cull is not None and cull.frame is frame:
+            score = light_scores(rc.ctx, cull, cands)
+        else:
+            arr = rc.scene.light_array
+            cam = np.asarray(scene.camera.position, np.float64)
+            d2 = np.sum((arr[cands, 0:3].astype(np.float64) - cam) ** 2, axis=1)
+            score = np.max(arr[cands, 8:11], axis=1) / np.maximum(d2, 1e-6)
+        order = np.argsort(-score, kind="stable")
+        keep = sorted(int(cands[i]) for i in order[:budget])
+        rest = sorted(set(cands) - set(keep))
+        return ShadowSelection(frame, keep, rest, budget)
 
     def execute(self, rc, frame):
         import moderngl
 
         scene = rc.scene.scene
         self._has_mesh = bool(rc.scene.emitters.groups)
+        selection = self._select(rc, frame)
+        self._mapped = set(selection.mapped)
+        rc.resources[SHADOW_SELECTION] = selection
+        self.selection = selection
         key = (rc.scene.version, frame.view.tobytes() if any(L.type == LightType.SUN for L in scene.lights) else b"",
-               frame.index if self._dynamic(scene) else 0)
+               frame.index if self._dynamic(scene) else 0, tuple(selection.mapped))
         if self._static_key == key and not self._dynamic(scene):
             return
         views = self._build_views(rc, frame, int(self["shadow_resolution"]))

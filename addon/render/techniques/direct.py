@@ -29,7 +29,10 @@ import numpy as np
 from ..framegraph import Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from ..passes.gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION, GBufferPass
-from ..passes.shadows import ATLAS, VIEWS, WORLD_RANGE, ShadowPass
+from ..passes.light_cull import (BIND_TILE_LIGHTS, LIGHT_CULL, TILE, TILE_LIGHTS, LightCuller,
+                                  LightCullPass)
+from ..passes.shadows import ATLAS, SHADOW_SELECTION, VIEWS, WORLD_RANGE, ShadowPass
+from ..scene_data import SceneError
 from . import Technique, register
 
 COLOR, AOV_DIRECT, AOV_EMIT, WORLD_SPEC = "color", "aov.direct", "aov.emit", "aov.world_spec"
@@ -42,20 +45,77 @@ class DirectLightPass(Pass):
     provides = frozenset({Effect.DIRECT, Effect.EMISSION, Effect.ENVIRONMENT})
     always = True  # produces the colour every technique builds on
     reads = (ALBEDO, NORMAL, POSITION, GEONORMAL)
-    optional_reads = (ATLAS, VIEWS, WORLD_RANGE)  # the shadow pass runs only if something casts shadows
+    # the shadow pass runs only if something casts shadows; graphs without the light_cull
+    # pass (techniques built on DIRECT's passes) get their tile lists culled here, inline
+    optional_reads = (ATLAS, VIEWS, WORLD_RANGE, SHADOW_SELECTION, TILE_LIGHTS, LIGHT_CULL)
     writes = (COLOR, AOV_DIRECT, AOV_EMIT, WORLD_SPEC)
     declared = tuple(Res(n, check="radiance") for n in writes)
     history_resets = frozenset()
     params = (
         Param("glossy_samples", 2, 1, 16, "light+BSDF sample pairs per light per pixel per frame"),
         Param("mesh_exact_max", 64, 0, 256, "emissive meshes up to this many triangles are integrated exactly"),
+        Param("rt_shadow_rays", 2, 0, 8,
+              "lights without a shadow map: ray-traced shadow rays per pixel per frame (lights chosen by contribution)"),
+        Param("far_samples", 1, 0, 4, "lights outside a tile's list: light samples per pixel per frame"),
+        Param("cull_fraction", 0.05, 0.0, 1.0, "light culling when the graph has no light_cull pass (see light_cull.py)"),
     )
     quality_ladder = ({"glossy_samples": 1}, {"glossy_samples": 2}, {"glossy_samples": 4}, {"glossy_samples": 8})
 
+    def __init__(self, quality=None, **props):
+        super().__init__(quality, **props)
+        self._culler = None  # inline culling (graphs without the light_cull pass)
+        self.notes: list[str] = []  # what this frame approximated (stats)
+        self.rt_used = False
+
+    def _cull(self, rc, frame):
+        cull = rc.resources.get(LIGHT_CULL)
+        if cull is not None and cull.frame is frame:
+            return cull
+        if self._culler is None:
+            self._culler = LightCuller()
+        return self._culler.run(rc, frame, float(self["cull_fraction"]))
+
     def execute(self, rc, frame):
-        prog = rc.programs.compute("direct/direct.comp")
         res = rc.resources
-        rc.scene.bind(prog)
+        cull = self._cull(rc, frame)
+        sel = res.get(SHADOW_SELECTION)
+        sel = sel if sel is not None and sel.frame is frame else None
+        unmapped = list(sel.unmapped) if sel is not None else []
+        far = cull.info["partial"] and int(self["far_samples"]) > 0
+        notes = []
+        rt = None
+        if (unmapped and int(self["rt_shadow_rays"]) > 0) or far:
+            try:
+                rt = rc.scene.rt()  # the session's shared ray-tracing component
+            except SceneError as exc:
+                notes.append(f"no ray tracing ({exc}): lights without a shadow map are unshadowed, "
+                             f"lights outside a tile's range are left out")
+        if rt is not None:
+            prog = rc.programs.compute("direct/direct.comp", {**rt.defines, "DIRECT_RT": 1})
+            rt.bind(prog)
+        else:
+            prog = rc.programs.compute("direct/direct.comp")
+            rc.scene.bind(prog)
+        self.rt_used = rt is not None
+        n = int(rc.scene.light_count)
+        if sel is not None and (sel.mapped or unmapped):
+            if unmapped:
+                how = (f"ray-traced shadows ({int(self['rt_shadow_rays'])} rays/pixel/frame, lights chosen by "
+                       f"contribution)" if rt is not None and int(self["rt_shadow_rays"]) > 0 else "no shadows")
+                notes.append(f"{len(sel.mapped)} of {len(sel.mapped) + len(unmapped)} shadow-casting lights have "
+                             f"shadow maps (budget {sel.budget}); the other {len(unmapped)}: {how}")
+        if cull.info["partial"]:
+            how = (f"estimated with {int(self['far_samples'])} light sample(s)/pixel/frame (unbiased)"
+                   if rt is not None and int(self["far_samples"]) > 0 else "left out (biased dark)")
+            notes.append(f"{n} lights culled per {TILE}px tile beyond {cull.info['l_min']:.3g} W/m2/sr "
+                         f"(cull_fraction {cull.info.get('fraction', 0):g}); lights outside a tile's range {how}")
+        self.notes = notes
+        cull.tile_lights.bind_to_storage_buffer(BIND_TILE_LIGHTS)
+        set_uniform(prog, "u_tile_capacity", int(cull.capacity))
+        set_uniform(prog, "u_tiles_x", int(cull.tiles_x))
+        set_uniform(prog, "u_tile_size", TILE)
+        set_uniform(prog, "u_rt_shadow_rays", int(self["rt_shadow_rays"]) if rt is not None else 0)
+        set_uniform(prog, "u_far_samples", int(self["far_samples"]) if rt is not None else 0)
         for unit, (name, uni) in enumerate(((ALBEDO, "u_gb_albedo"), (NORMAL, "u_gb_normal"),
                                             (POSITION, "u_gb_position"), (GEONORMAL, "u_gb_geonormal")), start=1):
             res[name].use(unit)
@@ -80,7 +140,16 @@ class DirectLightPass(Pass):
         res[AOV_DIRECT].bind_to_image(1, read=False, write=True)
         res[AOV_EMIT].bind_to_image(2, read=False, write=True)
         res[WORLD_SPEC].bind_to_image(3, read=False, write=True)
+        if rc.resources.get(LIGHT_CULL) is not cull:
+            # culled inline by this pass: its SSBO stores before this dispatch reads them
+            # (the graph places the barrier after the light_cull pass)
+            rc.ctx.memory_barrier(0x2000)  # GL_SHADER_STORAGE_BARRIER_BIT
         rc.dispatch(prog, *rc.groups(8))
+
+    def release(self):
+        if self._culler is not None:
+            self._culler.release()
+            self._culler = None
 
 
 @register
@@ -94,4 +163,4 @@ class Direct(Technique):
     outputs = DIRECT_OUTPUTS
 
     def passes(self, quality):
-        return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality)]
+        return [GBufferPass(quality), LightCullPass(quality), ShadowPass(quality), DirectLightPass(quality)]

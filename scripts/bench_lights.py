@@ -1,0 +1,278 @@
+"""Many-lights benchmark: DIRECT's (and PT's) time per frame against the number of lights,
+with Cycles on the same scene in the same run.
+
+Run with the bpy module (one process per checkout; ``--repo`` measures another checkout,
+e.g. the code before the many-light work, with this same script and scene):
+
+    .venv/bin/python scripts/bench_lights.py --repo /tmp/gi_before --label before
+    .venv/bin/python scripts/bench_lights.py --label after
+
+The scene (built here, so both checkouts see the same one): a 16 m x 16 m grey floor with a
+sphere, two pillars and a metal ball, lit by N point lights (radius 0.05 m, many colours) on
+a jittered grid over the floor at 0.25-1.2 m, total power 768 W whatever N (768/N W each),
+a dark world; camera as in the many_lights demo. For each N in ``--counts``:
+
+* Cycles direct-light reference (``--ref-spp``, fair settings) and Cycles direct at
+  ``--samples`` spp (time, relMSE against the reference);
+* DIRECT at ``--quality`` accumulating ``--samples`` frames: median ms per frame (after a
+  warm-up render that compiles shaders and builds what it builds), total ms, relMSE against
+  the reference (all pixels);
+* PT at quality 0 (1 spp per frame), ``--samples`` frames: ms per frame; Cycles full at
+  ``--samples`` spp: time (the ratio PT / Cycles at equal samples).
+
+A render whose warm-up frame is slower than ``--frame-budget`` seconds accumulates fewer
+frames (at least 2): its median frame time is still measured, its relMSE is then noisier
+(the table says how many frames it ran).
+
+Writes ``<out>/many_lights_<label>.json``; the ``after`` run also writes
+``<out>/many_lights.md`` and ``many_lights.json`` with the before numbers side by side when
+``many_lights_before.json`` exists.
+"""
+from __future__ import annotations
+
+import argparse
+import colorsys
+import importlib
+import json
+import math
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def import_addon(repo: Path):
+    d = tempfile.mkdtemp(prefix="gi_preview_pkg_")
+    os.symlink(repo / "addon", os.path.join(d, "gi_preview"), target_is_directory=True)
+    sys.path.insert(0, d)
+    return importlib.import_module("gi_preview")
+
+
+def build_scene(n: int, res: int):
+    import bpy
+    import numpy as np
+
+    sc = bpy.data.scenes.new(f"bench_lights_{n}")
+    sc.render.resolution_x = sc.render.resolution_y = res
+    sc.render.resolution_percentage = 100
+
+    def mat(name, color, rough, metal=0.0):
+        m = bpy.data.materials.new(name)
+        m.use_nodes = True
+        bsdf = m.node_tree.nodes.get("Principled BSDF")
+        bsdf.inputs["Base Color"].default_value = (*color, 1.0)
+        bsdf.inputs["Roughness"].default_value = rough
+        bsdf.inputs["Metallic"].default_value = metal
+        return m
+
+    def mesh(name, verts, faces, m, loc=(0, 0, 0), smooth=False):
+        me = bpy.data.meshes.new(name)
+        me.from_pydata(verts, [], faces)
+        me.materials.append(m)
+        if smooth:
+            me.shade_smooth()
+        ob = bpy.data.objects.new(name, me)
+        ob.location = loc
+        sc.collection.objects.link(ob)
+
+    def box(name, size, m, loc):
+        sx, sy, sz = (s / 2 for s in size)
+        v = [(-sx, -sy, -sz), (sx, -sy, -sz), (sx, sy, -sz), (-sx, sy, -sz),
+             (-sx, -sy, sz), (sx, -sy, sz), (sx, sy, sz), (-sx, sy, sz)]
+        f = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+        mesh(name, v, f, m, loc)
+
+    def sphere(name, r, m, loc, seg=32, rings=16):
+        verts, faces = [], []
+        for i in range(rings + 1):
+            th = math.pi * i / rings
+            for j in range(seg):
+                ph = 2 * math.pi * j / seg
+                verts.append((r * math.sin(th) * math.cos(ph), r * math.sin(th) * math.sin(ph), r * math.cos(th)))
+        for i in range(rings):
+            for j in range(seg):
+                a, b = i * seg + j, i * seg + (j + 1) % seg
+                faces.append((a, b, b + seg, a + seg))
+        mesh(name, verts, faces, m, loc, smooth=True)
+
+    grey = mat("bl_grey", (0.7, 0.7, 0.7), 0.5)
+    mesh("bl_floor", [(-8, -8, 0), (8, -8, 0), (8, 8, 0), (-8, 8, 0)], [(0, 1, 2, 3)], mat("bl_floor", (0.6, 0.6, 0.6), 0.4))
+    sphere("bl_ball", 0.8, grey, (0, 0, 0.8))
+    box("bl_pillar_a", (0.6, 0.6, 2.0), grey, (2.2, 1.0, 1.0))
+    box("bl_pillar_b", (0.6, 0.6, 1.2), grey, (-2.0, 1.8, 0.6))
+    sphere("bl_metal", 0.4, mat("bl_metal", (0.9, 0.9, 0.9), 0.15, 1.0), (-1.2, -1.6, 0.4))
+    rng = np.random.default_rng(11)
+    g = int(math.ceil(math.sqrt(n)))
+    for i in range(n):
+        gx, gy = i % g, i // g
+        x = -7.5 + 15.0 * (gx + 0.2 + 0.6 * rng.random()) / g
+        y = -7.5 + 15.0 * (gy + 0.2 + 0.6 * rng.random()) / g
+        z = 0.25 + 0.95 * rng.random()
+        ld = bpy.data.lights.new(f"bl_point_{i}", "POINT")
+        ld.energy = 768.0 / n
+        ld.color = colorsys.hsv_to_rgb(float(rng.random()), 0.75, 1.0)
+        ld.shadow_soft_size = 0.05
+        ob = bpy.data.objects.new(f"bl_point_{i}", ld)
+        ob.location = (x, y, z)
+        sc.collection.objects.link(ob)
+    cd = bpy.data.cameras.new("bl_cam")
+    cd.lens = 30.0
+    cd.clip_start = 0.05
+    cam = bpy.data.objects.new("bl_cam", cd)
+    cam.location = (0, -7.5, 4.5)
+    from mathutils import Vector
+    cam.rotation_euler = (Vector((0, 0, 0.5)) - Vector(cam.location)).to_track_quat("-Z", "Y").to_euler()
+    sc.collection.objects.link(cam)
+    sc.camera = cam
+    w = bpy.data.worlds.new("bl_world")
+    w.use_nodes = True
+    bg = w.node_tree.nodes.get("Background")
+    bg.inputs["Color"].default_value = (0.02, 0.02, 0.03, 1.0)
+    bg.inputs["Strength"].default_value = 1.0
+    sc.world = w
+    return sc
+
+
+def relmse(a, b):
+    import numpy as np
+    a = a[..., :3].astype(np.float64)
+    b = b[..., :3].astype(np.float64)
+    return float(np.mean((a - b) ** 2 / (b * b + 1e-2)))
+
+
+def time_technique(session, sd, tech, quality, samples, frame_budget):
+    """Warm-up render (compile, BVH), then ``samples`` frames (fewer when one frame is slower
+    than frame_budget s). Returns (image, frame_ms median, total_ms, frames, result)."""
+    t0 = time.perf_counter()
+    session.render(sd, tech, quality, 1)
+    warm = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    session.render(sd, tech, quality, 1)
+    one = time.perf_counter() - t0
+    frames = samples if one <= frame_budget else max(2, min(samples, int(frame_budget * samples / one)))
+    t0 = time.perf_counter()
+    r = session.render(sd, tech, quality, frames)
+    total = (time.perf_counter() - t0) * 1e3
+    return r.image, float(r.frame_ms), total, frames, r, warm
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repo", default=str(REPO), help="checkout whose add-on is measured")
+    ap.add_argument("--label", default="after")
+    ap.add_argument("--counts", default="1,4,16,64,256,1024")
+    ap.add_argument("--res", type=int, default=96)
+    ap.add_argument("--samples", type=int, default=16, help="frames DIRECT/PT accumulate (the F12 default)")
+    ap.add_argument("--quality", type=int, default=1)
+    ap.add_argument("--ref-spp", type=int, default=256)
+    ap.add_argument("--frame-budget", type=float, default=3.0,
+                    help="s: a technique slower than this per frame runs fewer frames")
+    ap.add_argument("--no-pt", action="store_true")
+    ap.add_argument("--out", default=str(REPO / "docs" / "results"))
+    args = ap.parse_args(argv)
+
+    import_addon(Path(args.repo).resolve())
+    import bpy
+    import numpy as np
+    from gi_preview.blender import reference
+    from gi_preview.blender.export import export_scene
+    from gi_preview.render import session
+    from gi_preview.render.gl import get_gl
+
+    counts = [int(c) for c in args.counts.split(",")]
+    rows = []
+    for n in counts:
+        sc = build_scene(n, args.res)
+        try:
+            with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
+                dg = bpy.context.evaluated_depsgraph_get()
+            dg.update()
+            sd = export_scene(dg)
+            ref, ref_ms = reference.render_cycles(sc, args.ref_spp, "direct")
+            cyc, cyc_ms = reference.render_cycles(sc, args.samples, "direct", seed=4321)
+            row = {"lights": n, "cycles_direct_ref_spp": args.ref_spp, "cycles_direct_ref_ms": ref_ms,
+                   "cycles_direct_spp": args.samples, "cycles_direct_ms": cyc_ms,
+                   "cycles_direct_relmse": relmse(cyc, ref)}
+            img, fms, tot, frames, r, warm = time_technique(session, sd, "DIRECT", args.quality, args.samples,
+                                                            args.frame_budget)
+            row.update({"direct_frame_ms": fms, "direct_total_ms": tot, "direct_frames": frames,
+                        "direct_first_render_s": warm, "direct_relmse": relmse(img, ref),
+                        "direct_nonfinite": int((~np.isfinite(img)).sum()),
+                        "direct_pass_ms": {k: float(v) for k, v in r.pass_ms.items()},
+                        "direct_warnings": list(getattr(r, "warnings", []))})
+            print(f"[{args.label}] N={n}: DIRECT {fms:.0f} ms/frame x{frames} relMSE {row['direct_relmse']:.4f} | "
+                  f"Cycles direct {args.samples} spp {cyc_ms:.0f} ms relMSE {row['cycles_direct_relmse']:.4f} "
+                  f"| passes {row['direct_pass_ms']}", flush=True)
+            if not args.no_pt:
+                full, full_ms = reference.render_cycles(sc, args.samples, "full", seed=4321)
+                img, fms, tot, frames, r, warm = time_technique(session, sd, "PT", 0, args.samples, args.frame_budget)
+                row.update({"pt_frame_ms": fms, "pt_total_ms": tot, "pt_frames": frames,
+                            "cycles_full_spp": args.samples, "cycles_full_ms": full_ms,
+                            "pt_nonfinite": int((~np.isfinite(img)).sum())})
+                print(f"[{args.label}] N={n}: PT {fms:.0f} ms/frame x{frames} | Cycles full {args.samples} spp "
+                      f"{full_ms:.0f} ms", flush=True)
+            rows.append(row)
+        finally:
+            bpy.data.scenes.remove(sc)
+    gl = get_gl()
+    info = {"label": args.label, "repo": str(Path(args.repo).resolve()), "res": args.res, "samples": args.samples,
+            "quality": args.quality, "machine": f"{platform.machine()} ({os.cpu_count()} cores)",
+            "gl": getattr(gl, "info", {}), "blender": bpy.app.version_string,
+            "date": time.strftime("%Y-%m-%d %H:%M"), "rows": rows}
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / f"many_lights_{args.label}.json").write_text(json.dumps(info, indent=1))
+    if args.label == "after":
+        before_p = out / "many_lights_before.json"
+        before = json.loads(before_p.read_text()) if before_p.exists() else None
+        (out / "many_lights.json").write_text(json.dumps({"after": info, "before": before}, indent=1))
+        (out / "many_lights.md").write_text(report(info, before))
+    session_release = getattr(session, "shutdown", None)
+    if session_release:
+        session_release()
+
+
+def report(after: dict, before: dict | None) -> str:
+    b = {r["lights"]: r for r in (before or {}).get("rows", [])}
+    L = ["# DIRECT and PT against the number of lights", "",
+         f"Generated by `scripts/bench_lights.py` on {after['date']}: {after['res']} x {after['res']} px, "
+         f"DIRECT quality {after['quality']} accumulating {after['samples']} frames, PT quality 0 (1 spp per "
+         f"frame), {after['machine']}, GL `{after['gl'].get('GL_RENDERER', '?')}`, Blender {after['blender']}. "
+         "Shared machine: expect +-20 % between runs. Scene: a 16 m floor with a sphere, two pillars and a metal "
+         "ball under N point lights (radius 5 cm, many colours, 768 W in total whatever N), built by the script.",
+         "",
+         "`before` = commit f05937a (every light shadow-mapped, every light shaded at every pixel), measured by "
+         "the same script with `--repo`. relMSE against Cycles direct at "
+         f"{after['rows'][0]['cycles_direct_ref_spp'] if after['rows'] else '?'} spp, all pixels. "
+         "ms/frame = median over the accumulated frames, after a warm-up render (shader compiles, BVH builds "
+         "excluded). Cycles ms = its render call at the same number of samples.", "",
+         "| lights | DIRECT before ms/frame | DIRECT ms/frame | speed-up | DIRECT before relMSE | DIRECT relMSE "
+         "| Cycles direct ms (spp) | Cycles direct relMSE | DIRECT total / Cycles | PT ms/frame | Cycles full ms "
+         "| PT total / Cycles |",
+         "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in after["rows"]:
+        o = b.get(r["lights"])
+        bf = f"{o['direct_frame_ms']:.0f} (x{o['direct_frames']})" if o else "-"
+        sp = f"{o['direct_frame_ms'] / r['direct_frame_ms']:.1f}x" if o else "-"
+        br = f"{o['direct_relmse']:.4f}" if o else "-"
+        ratio = r["direct_frame_ms"] * after["samples"] / max(r["cycles_direct_ms"], 1e-9)
+        pt = f"{r['pt_frame_ms']:.0f}" if "pt_frame_ms" in r else "-"
+        cf = f"{r['cycles_full_ms']:.0f}" if "cycles_full_ms" in r else "-"
+        ptr = (f"{r['pt_frame_ms'] * after['samples'] / max(r['cycles_full_ms'], 1e-9):.2f}"
+               if "pt_frame_ms" in r else "-")
+        L.append(f"| {r['lights']} | {bf} | {r['direct_frame_ms']:.0f} (x{r['direct_frames']}) | {sp} | {br} | "
+                 f"{r['direct_relmse']:.4f} | {r['cycles_direct_ms']:.0f} ({r['cycles_direct_spp']}) | "
+                 f"{r['cycles_direct_relmse']:.4f} | {ratio:.2f} | {pt} | {cf} | {ptr} |")
+    L += ["", "DIRECT's pass times (ms, last frame) and what it reported approximating:", ""]
+    for r in after["rows"]:
+        L.append(f"- {r['lights']} lights: {r['direct_pass_ms']}; " + ("; ".join(r.get("direct_warnings") or [])
+                                                                        or "nothing approximated"))
+    return "\n".join(L) + "\n"
+
+
+if __name__ == "__main__":
+    main()
