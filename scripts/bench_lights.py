@@ -160,6 +160,42 @@ def time_technique(session, sd, tech, quality, samples, frame_budget):
     return r.image, float(r.frame_ms), total, frames, r, warm
 
 
+def run_count(args, n, bpy, np, reference, export_scene, session) -> dict:
+    """Everything measured for one light count (Cycles, DIRECT, PT) on a fresh scene."""
+    sc = build_scene(n, args.res)
+    try:
+        with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
+            dg = bpy.context.evaluated_depsgraph_get()
+        dg.update()
+        sd = export_scene(dg)
+        ref, ref_ms = reference.render_cycles(sc, args.ref_spp, "direct")
+        cyc, cyc_ms = reference.render_cycles(sc, args.samples, "direct", seed=4321)
+        row = {"lights": n, "cycles_direct_ref_spp": args.ref_spp, "cycles_direct_ref_ms": ref_ms,
+               "cycles_direct_spp": args.samples, "cycles_direct_ms": cyc_ms,
+               "cycles_direct_relmse": relmse(cyc, ref)}
+        img, fms, tot, frames, r, warm = time_technique(session, sd, "DIRECT", args.quality, args.samples,
+                                                        args.frame_budget)
+        row.update({"direct_frame_ms": fms, "direct_total_ms": tot, "direct_frames": frames,
+                    "direct_first_render_s": warm, "direct_relmse": relmse(img, ref),
+                    "direct_nonfinite": int((~np.isfinite(img)).sum()),
+                    "direct_pass_ms": {k: float(v) for k, v in r.pass_ms.items()},
+                    "direct_warnings": list(getattr(r, "warnings", []))})
+        print(f"[{args.label}] N={n}: DIRECT {fms:.0f} ms/frame x{frames} relMSE {row['direct_relmse']:.4f} | "
+              f"Cycles direct {args.samples} spp {cyc_ms:.0f} ms relMSE {row['cycles_direct_relmse']:.4f} "
+              f"| passes {row['direct_pass_ms']}", flush=True)
+        if not args.no_pt:
+            full, full_ms = reference.render_cycles(sc, args.samples, "full", seed=4321)
+            img, fms, tot, frames, r, warm = time_technique(session, sd, "PT", 0, args.samples, args.frame_budget)
+            row.update({"pt_frame_ms": fms, "pt_total_ms": tot, "pt_frames": frames,
+                        "cycles_full_spp": args.samples, "cycles_full_ms": full_ms,
+                        "pt_nonfinite": int((~np.isfinite(img)).sum())})
+            print(f"[{args.label}] N={n}: PT {fms:.0f} ms/frame x{frames} | Cycles full {args.samples} spp "
+                  f"{full_ms:.0f} ms", flush=True)
+        return row
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--repo", default=str(REPO), help="checkout whose add-on is measured")
@@ -173,6 +209,8 @@ def main(argv=None):
                     help="s: a technique slower than this per frame runs fewer frames")
     ap.add_argument("--no-pt", action="store_true")
     ap.add_argument("--out", default=str(REPO / "docs" / "results"))
+    ap.add_argument("--lock", default=None,
+                    help="a file to flock around each light count's renders (shared machines: others run between)")
     args = ap.parse_args(argv)
 
     import_addon(Path(args.repo).resolve())
@@ -185,39 +223,24 @@ def main(argv=None):
 
     counts = [int(c) for c in args.counts.split(",")]
     rows = []
+    import contextlib
+    import fcntl
+
+    @contextlib.contextmanager
+    def heavy():
+        if not args.lock:
+            yield
+            return
+        with open(args.lock, "a") as fh:
+            fcntl.flock(fh, fcntl.LOCK_EX)
+            try:
+                yield
+            finally:
+                fcntl.flock(fh, fcntl.LOCK_UN)
+
     for n in counts:
-        sc = build_scene(n, args.res)
-        try:
-            with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
-                dg = bpy.context.evaluated_depsgraph_get()
-            dg.update()
-            sd = export_scene(dg)
-            ref, ref_ms = reference.render_cycles(sc, args.ref_spp, "direct")
-            cyc, cyc_ms = reference.render_cycles(sc, args.samples, "direct", seed=4321)
-            row = {"lights": n, "cycles_direct_ref_spp": args.ref_spp, "cycles_direct_ref_ms": ref_ms,
-                   "cycles_direct_spp": args.samples, "cycles_direct_ms": cyc_ms,
-                   "cycles_direct_relmse": relmse(cyc, ref)}
-            img, fms, tot, frames, r, warm = time_technique(session, sd, "DIRECT", args.quality, args.samples,
-                                                            args.frame_budget)
-            row.update({"direct_frame_ms": fms, "direct_total_ms": tot, "direct_frames": frames,
-                        "direct_first_render_s": warm, "direct_relmse": relmse(img, ref),
-                        "direct_nonfinite": int((~np.isfinite(img)).sum()),
-                        "direct_pass_ms": {k: float(v) for k, v in r.pass_ms.items()},
-                        "direct_warnings": list(getattr(r, "warnings", []))})
-            print(f"[{args.label}] N={n}: DIRECT {fms:.0f} ms/frame x{frames} relMSE {row['direct_relmse']:.4f} | "
-                  f"Cycles direct {args.samples} spp {cyc_ms:.0f} ms relMSE {row['cycles_direct_relmse']:.4f} "
-                  f"| passes {row['direct_pass_ms']}", flush=True)
-            if not args.no_pt:
-                full, full_ms = reference.render_cycles(sc, args.samples, "full", seed=4321)
-                img, fms, tot, frames, r, warm = time_technique(session, sd, "PT", 0, args.samples, args.frame_budget)
-                row.update({"pt_frame_ms": fms, "pt_total_ms": tot, "pt_frames": frames,
-                            "cycles_full_spp": args.samples, "cycles_full_ms": full_ms,
-                            "pt_nonfinite": int((~np.isfinite(img)).sum())})
-                print(f"[{args.label}] N={n}: PT {fms:.0f} ms/frame x{frames} | Cycles full {args.samples} spp "
-                      f"{full_ms:.0f} ms", flush=True)
-            rows.append(row)
-        finally:
-            bpy.data.scenes.remove(sc)
+        with heavy():
+            rows.append(run_count(args, n, bpy, np, reference, export_scene, session))
     gl = get_gl()
     info = {"label": args.label, "repo": str(Path(args.repo).resolve()), "res": args.res, "samples": args.samples,
             "quality": args.quality, "machine": f"{platform.machine()} ({os.cpu_count()} cores)",
