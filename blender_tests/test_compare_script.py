@@ -189,6 +189,9 @@ def test_compare_operator(tmp_path, monkeypatch):
         stored = compare_ops.load_results(sc)
         tech = sc.gi_preview_comparison.last_technique
         assert tech in stored and _finite(stored[tech]["relmse"]) and _finite(stored[tech]["flip"])
+        # the panel's ms/frame and setup ms (export + GPU upload/BVH/compile), kept apart
+        assert _finite(stored[tech]["ms_per_frame"]) and stored[tech]["ms_per_frame"] > 0
+        assert _finite(stored[tech]["setup_ms"]) and stored[tech]["setup_ms"] > 0
         # render slots 1-3 hold GI Preview, Cycles and the error map (J flips between them)
         rr = bpy.data.images["Render Result"]
         assert [rr.render_slots[i].name for i in range(3)] == list(compare_ops.SLOT_LABELS)

@@ -210,8 +210,10 @@ class GIPREVIEW_OT_compare(bpy.types.Operator):
             from . import reference as R
             from .export import export_scene
             from ..render import session
+            t0 = time.perf_counter()
             dg = R.evaluated_depsgraph(scene, context.view_layer)
             sd = export_scene(dg)
+            st["export_ms"] = (time.perf_counter() - t0) * 1e3
             st["fingerprint"] = sd.fingerprint()
             st["size"] = (sd.width, sd.height)
             res = session.render(sd, technique=tech, quality=quality, samples=samples)
@@ -236,6 +238,7 @@ class GIPREVIEW_OT_compare(bpy.types.Operator):
             entry = {"technique": tech, "quality": quality, "samples": samples,
                      "reference": st["kind"], "ref_spp": ref.spp, "ref_time_ms": ref.time_ms,
                      "ref_cached": ref.cached, "ms_per_frame": float(res.frame_ms),
+                     "setup_ms": st.get("export_ms", 0.0) + float(getattr(res, "setup_ms", 0.0) or 0.0),
                      "total_ms": float(res.total_ms), "relmse": m["relmse"], "flip": m["flip"],
                      "ssim": m["ssim"], "psnr": m["psnr"] if np.isfinite(m["psnr"]) else None,
                      "nonfinite_pixels": m["nonfinite_pixels"],
@@ -365,8 +368,10 @@ class CompareJob:
         from ..render import session
 
         st, scene = self.st, self.scene
+        t0 = time.perf_counter()
         dg = R.evaluated_depsgraph(scene, self.context.view_layer)
         sd = export_scene(dg)
+        st["export_ms"] = (time.perf_counter() - t0) * 1e3
         st["fingerprint"] = sd.fingerprint()
         st["size"] = w, h = (sd.width, sd.height)
         self.future = session.submit_render(sd, st["technique"], st["quality"], st["samples"],
