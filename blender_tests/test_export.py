@@ -157,6 +157,88 @@ def test_geometry_nodes_instances_stored_once(scene):
     assert xs == [0.0, 1.0, 2.0, 3.0, 4.0]
 
 
+def test_instance_ids_unique_and_stable(scene):
+    """Every instance has its own id (two collection instances of one object, geometry-nodes
+    instances, linked duplicates), and the ids survive moving things and changing frames."""
+    a = add_mesh(scene, "a", *CUBE)
+    add_mesh(scene, "b", None, None, data=a.data, location=(3, 0, 0))
+    col = bpy.data.collections.new("col")
+    col.objects.link(bpy.data.objects.new("inner", a.data))
+    empties = []
+    for k in range(2):
+        e = bpy.data.objects.new(f"empty{k}", None)
+        e.instance_type = "COLLECTION"
+        e.instance_collection = col
+        e.location = (0, 5 * k, 0)
+        scene.collection.objects.link(e)
+        empties.append(e)
+    gn = add_mesh(scene, "gn", *QUAD)
+    tree = bpy.data.node_groups.new("gn_ids", "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    line = tree.nodes.new("GeometryNodeMeshLine")
+    line.inputs["Count"].default_value = 3
+    inst = tree.nodes.new("GeometryNodeInstanceOnPoints")
+    tree.links.new(line.outputs["Mesh"], inst.inputs["Points"])
+    tree.links.new(tree.nodes.new("GeometryNodeMeshCube").outputs["Mesh"], inst.inputs["Instance"])
+    tree.links.new(inst.outputs["Instances"], tree.nodes.new("NodeGroupOutput").inputs[0])
+    gn.modifiers.new("GN", "NODES").node_group = tree
+    sd = export(scene)
+    ids = [i.instance_id for i in sd.instances]
+    assert len(ids) == len(set(ids)) == 2 + 2 + 3, ids
+    assert sd.instance_ids() == ids
+    inner = sorted(i.instance_id for i in instances_of(sd, "inner"))
+    assert inner[0].startswith("empty0/inner/") and inner[1].startswith("empty1/inner/")
+    assert {i.instance_id for i in instances_of(sd, "a")} == {"a"}
+    by_id = {i.instance_id: i.matrix.copy() for i in sd.instances}
+    empties[1].location.x += 1
+    a.location.z += 1
+    scene.frame_set(scene.frame_current + 1)
+    sd2 = export(scene)
+    assert [i.instance_id for i in sd2.instances] == ids
+    moved = {i.instance_id for i in sd2.instances if not np.allclose(i.matrix, by_id[i.instance_id])}
+    assert moved == {"a", inner[1]}, moved
+    # instances built without ids (SceneData made in code) get unique ones too
+    for i in sd2.instances:
+        i.instance_id = ""
+    gen = sd2.instance_ids()
+    assert len(set(gen)) == len(gen) and gen[0] == f"{sd2.instances[0].object_name}#0"
+
+
+def test_scene_exporter_reads_only_changed_meshes(scene):
+    """SceneExporter with fake depsgraph.updates: a transform update reuses every Mesh object;
+    a geometry update of a mesh shared by two objects reads it once; a deleted object's
+    mesh leaves the cache."""
+    import types
+
+    from gi_preview.blender.export import SceneExporter
+
+    a = add_mesh(scene, "a", *CUBE)
+    b = add_mesh(scene, "b", None, None, data=a.data, location=(3, 0, 0))
+    c = add_mesh(scene, "c", *QUAD, location=(0, 3, 0))
+    ex = SceneExporter()
+    sd1 = ex.export(depsgraph(scene))
+    assert ex.last_stats == {"meshes_read": 2, "meshes_reused": 0}
+
+    def upd(idb, geometry=False, transform=False):
+        return types.SimpleNamespace(id=idb, is_updated_geometry=geometry, is_updated_transform=transform,
+                                     is_updated_shading=False)
+
+    c.location.x += 1
+    sd2 = ex.export(depsgraph(scene), [upd(c, transform=True)])
+    assert ex.last_stats == {"meshes_read": 0, "meshes_reused": 2}
+    assert {id(m) for m in sd2.meshes} == {id(m) for m in sd1.meshes}
+    assert not np.allclose(instances_of(sd2, "c")[0].matrix, instances_of(sd1, "c")[0].matrix)
+    a.data.vertices[0].co.z += 0.5
+    a.data.update()
+    sd3 = ex.export(depsgraph(scene), [upd(a, geometry=True), upd(a.data, geometry=True)])
+    assert ex.last_stats == {"meshes_read": 1, "meshes_reused": 1}
+    ia, ib = instances_of(sd3, "a")[0], instances_of(sd3, "b")[0]
+    assert ia.mesh == ib.mesh and np.isclose(sd3.meshes[ia.mesh].positions[:, 2], -0.5).any()  # the edit
+    bpy.data.objects.remove(c)
+    ex.export(depsgraph(scene), [])
+    assert len(ex._meshes) == 1
+
+
 def test_curve_and_text_come_through_once(scene):
     tx = bpy.data.curves.new("txt", "FONT")
     tx.body = "Hi"

@@ -289,3 +289,42 @@ def test_viewport_frame_during_f12_render():
         for k in ("vp_during_f12",):
             session.release_session(k)
         bpy.data.scenes.remove(sc)
+
+
+def test_scene_edits_reset_history_as_declared():
+    """Between two frames of one session: moving an object is a 'transforms' edit (not
+    'geometry'); the shadow pass, which declares transforms/lights/geometry, is reset by a
+    move and a light edit but not by a material edit."""
+    sc = build_demo("cornell", resolution=32)
+    key = "edits_test"
+    try:
+        def frame():
+            return session.render(export_scene(_depsgraph(sc)), "DIRECT", 0, 1, keep_history=True, session=key)
+
+        def last_events():
+            def read():
+                _, graph = session._sessions[key].graphs[("DIRECT", 0)]
+                return list(graph.history_log)
+            return get_gl().call(read)
+
+        frame()
+        n0 = len(last_events())
+        assert frame().history_resets == []  # nothing changed
+        box = next(o for o in sc.objects if o.name.endswith("tall_box"))
+        box.location.x += 0.05
+        res = frame()
+        log = last_events()[n0:]
+        assert "shadows" in res.history_resets
+        assert {tuple(e["events"]) for e in log} == {("transforms",)}, log
+        mat = box.material_slots[0].material
+        mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (0.1, 0.6, 0.2, 1)
+        res = frame()
+        assert "shadows" not in res.history_resets  # a material edit does not touch shadow maps
+        light = next(o for o in sc.objects if o.type == "LIGHT")
+        light.data.energy *= 1.5
+        res = frame()
+        assert "shadows" in res.history_resets
+        assert {tuple(e["events"]) for e in last_events()[-len(res.history_resets):]} == {("lights",)}
+    finally:
+        session.release_session(key).result(timeout=30)
+        bpy.data.scenes.remove(sc)
