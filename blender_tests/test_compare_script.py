@@ -208,3 +208,23 @@ def test_compare_operator(tmp_path, monkeypatch):
         assert sc.render.engine == "GI_PREVIEW"
     finally:
         bpy.data.scenes.remove(sc)
+
+
+def test_baseline_arguments():
+    """--baselines / --eevee-samples / --denoised-curve: defaults, 'none', bad values."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("gi_compare_script", SCRIPT)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    a = mod.parse_args(["cornell"], scene_optional=False)
+    assert a.baselines == ["cycles", "cycles_denoised", "eevee"]
+    assert a.curve == [1, 2, 4, 8, 16, 32, 64] and a.denoised_curve == a.curve
+    assert a.eevee_samples == [1, 2, 4, 8]
+    a = mod.parse_args(["cornell", "--baselines", "none", "--ref-spp", "16"], scene_optional=False)
+    assert a.baselines == ["cycles"] and a.curve == [1, 2, 4]
+    a = mod.parse_args(["cornell", "--baselines", "eevee", "--eevee-samples", "4,1,4",
+                        "--denoised-curve", "2,8"], scene_optional=False)
+    assert a.baselines == ["cycles", "eevee"] and a.eevee_samples == [1, 4] and a.denoised_curve == [2, 8]
+    for bad in (["--baselines", "eevee,unbiased"], ["--eevee-samples", "0,2"], ["--denoised-curve", "x"]):
+        with pytest.raises(SystemExit):
+            mod.parse_args(["cornell", *bad], scene_optional=False)
