@@ -436,6 +436,7 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
         "reference_settings": getattr(reference, "FAIR_SETTINGS_SUMMARY", ""),
         "export_ms": export_ms,
         "baselines": baselines,
+        "baselines_reference": primary,
         "baselines_setup": baseline_info,
         "cycles_curve": curves[primary],
         "cycles_curves": curves,
