@@ -328,3 +328,34 @@ def test_scene_edits_reset_history_as_declared():
     finally:
         session.release_session(key).result(timeout=30)
         bpy.data.scenes.remove(sc)
+
+
+def test_gl_thread_schedules_steps_by_priority_and_session():
+    """Generator jobs run one step at a time: interactive jobs first, round robin within a
+    priority, jobs of one key in submission order; an exception ends only its own job."""
+    from gi_preview.render.gl import PRIORITY_INTERACTIVE
+
+    gl = get_gl()
+    log = []
+    gate = threading.Event()
+
+    def steps(name, n, fail=False):
+        for i in range(n):
+            log.append(f"{name}{i}")
+            yield
+        if fail:
+            raise ValueError(f"{name} failed")
+        return name
+
+    blocker = gl.submit(gate.wait, 30)  # holds the thread while the jobs below queue up
+    a = gl.submit_job(steps, ("A", 3), key="k")
+    b = gl.submit_job(steps, ("B", 2), key="k")  # same key as A: waits for A to end
+    c = gl.submit_job(steps, ("C", 2), priority=PRIORITY_INTERACTIVE)
+    d = gl.submit_job(steps, ("D", 2), {"fail": True})
+    gate.set()
+    assert blocker.result(timeout=30) is True
+    assert [f.result(timeout=30) for f in (a, b, c)] == ["A", "B", "C"]
+    with pytest.raises(ValueError, match="D failed"):
+        d.result(timeout=30)
+    assert log == ["C0", "C1", "A0", "D0", "A1", "D1", "A2", "B0", "B1"], log
+    assert gl.call(lambda: 42) == 42  # the thread lives on

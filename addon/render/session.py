@@ -323,7 +323,7 @@ def release_session(key) -> Future | None:
 
     if _glmod._gl is None or not _glmod._gl._thread.is_alive():
         return None
-    return _glmod._gl.submit_job(_release_session, (key,), key=key, priority=PRIORITY_BACKGROUND)
+    return _glmod._gl.submit_job(_release_session, (key,), key=("session", key), priority=PRIORITY_BACKGROUND)
 
 
 def session_keys() -> list:
