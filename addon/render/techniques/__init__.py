@@ -69,7 +69,8 @@ class Technique:
 REGISTRY: dict[str, type] = {}
 
 # Modules of techniques, in menu order. A module that fails to import is reported, not fatal.
-_MODULES = ("direct", "pt", "ssao", "hbao", "ssdo", "ssr", "auto")
+_MODULES = ("direct", "pt", "ssao", "hbao", "ssdo", "ssr", "rsm", "lpv", "vxgi", "restir_di", "restir_gi",
+            "atrous", "svgf", "taa", "irradiance_volume", "ddgi", "rtxgi", "auto")
 _loaded = False
 LOAD_ERRORS: dict[str, str] = {}
 
