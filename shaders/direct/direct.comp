@@ -12,9 +12,10 @@
 // list (light_cull.comp: lights whose range of influence meets the tile). A listed light
 // with a shadow map is shadowed by it; listed lights that cast shadows but got no shadow map
 // (over the shadow pass's budget) are shadowed by ray tracing through the shared scene
-// component (lib/scene_rt.glsl): u_rt_shadow_rays lights per pixel per frame, chosen by
-// weighted reservoir sampling in proportion to their unshadowed contribution, one shadow ray
-// to a point sampled on each (unbiased: c_j V_j W / w_j). Lights not in the tile's list are
+// component (lib/scene_rt.glsl): their unshadowed sum minus the light shadows take away,
+// estimated with u_rt_shadow_rays lights per pixel per frame chosen by weighted reservoir
+// sampling in proportion to their unshadowed contribution, one shadow ray to a point sampled
+// on each (unbiased: c_j (1 - V_j) W / w_j). Lights not in the tile's list are
 // estimated with u_far_samples light samples per pixel chosen by power (select_light), counted
 // only when the chosen light is not listed (unbiased). Both ray-traced parts need DIRECT_RT.
 #define USE_SCENE_BUFFERS
@@ -248,6 +249,7 @@ void main() {
     float r_w[RT_MAX_RESERVOIRS];
     for (int j = 0; j < RT_MAX_RESERVOIRS; ++j) { r_idx[j] = -1; r_c[j] = vec3(0.0); r_w[j] = 0.0; }
     float wsum = 0.0;
+    vec3 unshadowed = vec3(0.0);  // sum of the unshadowed contributions of the reservoir's candidates
     int K = min(u_rt_shadow_rays, RT_MAX_RESERVOIRS);
 #endif
     for (int k = 0; k < listed; ++k) {
@@ -259,6 +261,7 @@ void main() {
         if (L.axis_w.w > 0.5 && L.shadow.y < 0.5 && K > 0) {  // casts shadows, no shadow map
             float w = max(luminance(c), 1e-30);
             wsum += w;
+            unshadowed += c;
             for (int j = 0; j < K; ++j) {
                 if (rng_next(rng) * wsum <= w) { r_idx[j] = i; r_c[j] = c; r_w[j] = w; }
             }
@@ -268,10 +271,18 @@ void main() {
         direct += c * light_visibility(lights[i], P, N, Ng);
     }
 #ifdef DIRECT_RT
+    // sum c_i V_i = sum c_i - sum c_i (1 - V_i): the unshadowed sum is exact, only the light
+    // the shadows take away is estimated (c_j (1 - V_j) W / w_j per reservoir): no noise where
+    // every candidate is visible, whatever the lights' colours
+    vec3 taken = vec3(0.0);
     for (int j = 0; j < K; ++j) {
         if (r_idx[j] < 0) continue;
-        direct += r_c[j] * (rt_light_visibility(lights[r_idx[j]], Po, Ng, rng) * wsum / (r_w[j] * float(K)));
+        float blocked = 1.0 - rt_light_visibility(lights[r_idx[j]], Po, Ng, rng);
+        taken += r_c[j] * (blocked * wsum / (r_w[j] * float(K)));
     }
+    // a channel can overshoot (a blocked light of another colour than the rest): clamp at 0
+    // (in luminance the estimate never overshoots: w = luminance)
+    if (wsum > 0.0) direct += max(unshadowed - taken, vec3(0.0));
     // lights outside the tile's list: one light by power, counted when it is not listed
     for (int f = 0; f < u_far_samples && listed < u_light_count; ++f) {
         float sel;

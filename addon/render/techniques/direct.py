@@ -54,7 +54,7 @@ class DirectLightPass(Pass):
     params = (
         Param("glossy_samples", 2, 1, 16, "light+BSDF sample pairs per light per pixel per frame"),
         Param("mesh_exact_max", 64, 0, 256, "emissive meshes up to this many triangles are integrated exactly"),
-        Param("rt_shadow_rays", 2, 0, 8,
+        Param("rt_shadow_rays", 4, 0, 8,
               "lights without a shadow map: ray-traced shadow rays per pixel per frame (lights chosen by contribution)"),
         Param("far_samples", 1, 0, 4, "lights outside a tile's list: light samples per pixel per frame"),
         Param("cull_fraction", 0.05, 0.0, 1.0, "light culling when the graph has no light_cull pass (see light_cull.py)"),
