@@ -303,7 +303,8 @@ def test_scene_edits_reset_history_as_declared():
 
         def last_events():
             def read():
-                _, graph = session._sessions[key].graphs[("DIRECT", 0)]
+                # the graphs dict is keyed (technique, quality, ...): take DIRECT q0's
+                (_, graph), = [g for k, g in session._sessions[key].graphs.items() if k[:2] == ("DIRECT", 0)]
                 return list(graph.history_log)
             return get_gl().call(read)
 
