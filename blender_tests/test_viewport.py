@@ -360,3 +360,25 @@ def test_gl_thread_schedules_steps_by_priority_and_session():
         d.result(timeout=30)
     assert log == ["C0", "C1", "A0", "D0", "A1", "D1", "A2", "B0", "B1"], log
     assert gl.call(lambda: 42) == 42  # the thread lives on
+
+
+def test_shutdown_during_a_long_render():
+    """Unregistering (gl.shutdown) while an F12-style render runs: the render ends between two
+    frames with a clear GLUnavailableError, sessions are freed, and a new GL thread renders."""
+    from gi_preview.render import gl as glmod
+
+    sc = build_demo("cornell", resolution=32)
+    try:
+        data = export_scene(_depsgraph(sc))
+        fut = session.submit_render(data, "DIRECT", 0, 100000, session="final", priority=PRIORITY_NORMAL)
+        t0 = time.perf_counter()
+        while fut.progress == 0.0 and time.perf_counter() - t0 < 60:
+            time.sleep(0.01)
+        glmod.shutdown()
+        with pytest.raises(glmod.GLUnavailableError, match="stopped"):
+            fut.result(timeout=30)
+        assert session._sessions == {}
+        res = session.render(data, "DIRECT", 0, 1)  # a fresh GL thread
+        assert np.isfinite(res.image).all() and res.image[..., :3].mean() > 1e-3
+    finally:
+        bpy.data.scenes.remove(sc)

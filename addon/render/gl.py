@@ -112,6 +112,7 @@ class GLThread:
         self.info: dict = {}
         self._seq = itertools.count()
         self._steps = 0  # generator steps run so far (all jobs; for tests and benchmarks)
+        self._final = None  # run on the thread when it stops (see stop())
         self._thread = threading.Thread(target=self._run, name="gi_preview-gl", daemon=True)
         self._thread.start()
         self._ready.wait()
@@ -146,8 +147,14 @@ class GLThread:
                 except queue.Empty:
                     item = False
             if stopping:
+                # unfinished jobs end first (their generators closed), then the final clean-up
                 for job in pending:
                     self._close(job, GLUnavailableError("the GI Preview GL thread has stopped"))
+                if self._final is not None:
+                    try:
+                        self._final()
+                    except Exception:  # noqa: BLE001 - best effort at shutdown
+                        pass
                 break
             job = self._pick(pending)
             if job is None:
@@ -256,8 +263,12 @@ class GLThread:
         """Run ``fn`` on the GL thread and return its result (exceptions are re-raised here)."""
         return self.submit(fn, *args, **kwargs).result()
 
-    def stop(self):
+    def stop(self, final=None):
+        """Stop the thread: unfinished jobs fail with GLUnavailableError (a stepped render
+        stops between two frames), then ``final()`` runs on the thread (freeing sessions)
+        before the context is released."""
         if self._thread.is_alive():
+            self._final = final
             self._queue.put(None)
             self._thread.join(timeout=10)
 
@@ -282,9 +293,5 @@ def shutdown():
         if _gl is not None:
             from . import session  # local import: session state lives on the GL thread
 
-            try:
-                _gl.call(session.release_all)
-            except Exception:
-                pass
-            _gl.stop()
+            _gl.stop(final=session.release_all)
             _gl = None
