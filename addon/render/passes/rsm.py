@@ -1,0 +1,336 @@
+"""Reflective shadow maps (Dachsbacher & Stamminger 2005), shared by RSM and LPV.
+
+* ``RSMPass`` (raster): one reflective shadow map per view of every shadow-casting light,
+  tiled in 2D atlases (like the shadow atlas): ``rsm.position`` (world position, w = 1 where
+  a surface was seen), ``rsm.normal`` (normal turned towards the light) and ``rsm.flux``
+  (the flux the texel's surface patch reflects diffusely, in W, from Cycles' light units).
+  Views: a spot light whose cone is at most 120 degrees gets one perspective view; point,
+  wider spot and area lights get six 90-degree cube faces (tiles of the atlas, one draw per
+  face; no paraboloids); a sun gets one orthographic view over the scene's bounds
+  intersected with a box of ``sun_extent`` around the camera. The view matrices come from
+  ``passes/shadows.py``'s helpers (perspective, ortho, look_at, CUBE_DIRS).
+  Flux of a texel (radiometry in Cycles' units, see the page):
+  point/spot ``Φ = ρ_d · I(ω) · dω`` with ``dω = t² cos³α`` the texel's solid angle (t the
+  texel size on the unit image plane, α the angle to the view axis); area lights (from
+  their centre) ``I(ω) = L_e A max(0, cos θ_L)``; sun ``Φ = ρ_d · E · A_texel``. ρ_d is the
+  diffuse albedo of the Principled layer at the light's incidence (lib/albedo.glsl).
+  Mesh lights and the world are not injected (the planner reports it).
+* ``RSMGatherPass`` (compute): one bounce of indirect diffuse from the VPLs. Samples are
+  placed in a disk of radius ``radius`` (fraction of the map) around the receiver's
+  projection by ξ1 (r = radius·ξ1) and weighted by ξ1² (the paper; normalised so that a
+  constant flux sums exactly: 3πR²ξ1²/N with R in texels) or, with ``exact_weights``, by
+  the exact inverse density 2πR²ξ1/N. Kernel
+  ``Φ·max(0,⟨n_p,x−x_p⟩)·max(0,⟨n,x_p−x⟩)/max(‖x−x_p‖², d_min²)²``: the clamp ``min_distance``
+  bounds the singularity and darkens contacts closer than d_min (bias, see the page).
+  The pattern is shared by all pixels of a frame and rotated every frame (accumulation
+  converges to the full sum over the disk). It runs at ``low_scale`` of the resolution,
+  then ``RSMResolvePass`` interpolates the four nearest low-resolution samples where their
+  normals and planes agree with the pixel's (at least three), and gathers again at full
+  resolution where they do not (the paper's screen-space scheme).
+* ``RSMDebugPass``: the flux atlas stretched over the frame (render pass GI_RSM_Flux).
+* ``LightGatedGraph``: a FrameGraph whose indirect effects are skipped, with the reason,
+  when no light casts shadows (the VPLs come only from shadow-casting lights).
+Shaders: ``shaders/raster3d/``.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..framegraph import HOST, Effect, FrameGraph, Param, Pass, Res
+from ..gpu_scene import set_uniform
+from ..scene_data import LightType
+from .gbuffer import GEONORMAL, NORMAL, POSITION
+from .screen_space import Units, bind_frame, bind_gbuffer, scaled
+from .shadows import CUBE_DIRS, look_at, ortho, perspective
+
+RSM_POS, RSM_NRM, RSM_FLUX, RSM_VIEWS = "rsm.position", "rsm.normal", "rsm.flux", "rsm.views"
+MAX_RSM_VIEWS = 24  # matches RSM_MAX_VIEWS in shaders/raster3d/rsm_common.glsl
+INDIRECT = frozenset({Effect.INDIRECT_DIFFUSE})
+
+
+def shadow_lights(scene) -> list[int]:
+    """Indices of the lights that cast shadows and emit (RSM/LPV/VXGI inject only these)."""
+    return [i for i, L in enumerate(scene.lights) if L.cast_shadow and float(np.max(L.color)) > 0.0]
+
+
+class LightGatedGraph(FrameGraph):
+    """Skips the passes of the given effects, with a reason, when no light casts shadows.
+
+    ``compile`` runs before ``plan`` in the session, so the graph sees the scene there."""
+
+    gated = frozenset({Effect.INDIRECT_DIFFUSE, Effect.INDIRECT_SPECULAR, Effect.AO})
+    _scene = None
+
+    def compile(self, rc, force: bool = False):
+        self._scene = rc.scene.scene if rc.scene is not None else None
+        return super().compile(rc, force)
+
+    def plan(self, needed, reasons=None):
+        reasons = dict(reasons or {})
+        sc = self._scene
+        if sc is not None and not shadow_lights(sc):
+            world_on = sc.world is not None and float(np.max(sc.world.color)) > 0.0
+            lights_on = any(float(np.max(L.color)) > 0 for L in sc.lights)
+            if world_on and not lights_on:
+                why = "open sky only: the world light is not injected (no light casts shadows)"
+            else:
+                why = "no light casts shadows (the injected light comes from shadow-casting lights only)"
+            needed = set(needed) - self.gated
+            for e in self.gated:
+                reasons[e] = why
+        return super().plan(needed, reasons)
+
+
+class RSMViews:
+    """This frame's RSM views (a host resource): per view the view-projection, origin,
+    whether it is orthographic, the forward axis, the texel size (tangent-plane units for
+    perspective views, world units for orthographic), the light index, and the atlas rect."""
+
+    def __init__(self, views=(), cols=1, res=1):
+        self.views, self.cols, self.res = list(views), cols, res
+
+    def release(self):
+        pass
+
+    def uniforms(self, prog, atlas_size):
+        n = len(self.views)
+        vp = np.zeros((MAX_RSM_VIEWS, 4, 4), np.float32)
+        org = np.zeros((MAX_RSM_VIEWS, 4), np.float32)
+        fwd = np.zeros((MAX_RSM_VIEWS, 4), np.float32)
+        rect = np.zeros((MAX_RSM_VIEWS, 4), np.float32)
+        for i, v in enumerate(self.views):
+            vp[i] = v["vp"].T  # column-major
+            org[i, :3], org[i, 3] = v["origin"], v["ortho"]
+            fwd[i, :3], fwd[i, 3] = v["fwd"], v["texel"]
+            x0, y0 = (i % self.cols) * self.res, (i // self.cols) * self.res
+            rect[i] = (x0, y0, self.res, self.res)
+        set_uniform(prog, "u_rsm_count", n)
+        for name, arr in (("u_rsm_vp", vp), ("u_rsm_origin", org), ("u_rsm_fwd", fwd), ("u_rsm_rect", rect)):
+            if name in prog:
+                prog[name].write(arr.tobytes())
+
+
+def rsm_views(scene, res: int, sun_extent: float, max_views: int = MAX_RSM_VIEWS) -> list[dict]:
+    """The views of every shadow-casting light (see the module docstring)."""
+    lo, hi = scene.world_bounds()
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    center = 0.5 * (lo + hi)
+    radius = max(float(np.linalg.norm(hi - lo)) * 0.5, 1e-3)
+    out = []
+    for li in shadow_lights(scene):
+        L = scene.lights[li]
+        if L.type == LightType.SUN:
+            d = L.direction.astype(np.float64)
+            c, r = center, radius
+            cam = scene.camera
+            if sun_extent > 0 and cam is not None and radius > sun_extent:
+                # over the camera's region: the scene box clipped to a box around the camera
+                cp = np.asarray(cam.position, np.float64)
+                blo, bhi = np.maximum(lo, cp - sun_extent), np.minimum(hi, cp + sun_extent)
+                if np.all(bhi > blo):
+                    c, r = 0.5 * (blo + bhi), max(float(np.linalg.norm(bhi - blo)) * 0.5, 1e-3)
+            eye = c - d * (2.0 * radius + r)
+            vp = ortho(r, 0.0, 4.0 * radius + 2.0 * r) @ look_at(eye, d, (0, 0, 1))
+            out.append({"vp": vp, "origin": eye, "ortho": 1.0, "fwd": d, "texel": 2.0 * r / res, "light": li})
+            continue
+        origin = np.asarray(L.position, np.float64)
+        far = float(np.linalg.norm(origin - center)) + radius * 1.01 + 1e-3
+        near = max(1e-3, far * 1e-4)
+        if L.type == LightType.SPOT and L.spot_size <= math.radians(120.0):
+            fov = min(math.radians(150.0), L.spot_size * 1.02 + math.radians(1.0))
+            d = L.direction.astype(np.float64)
+            vp = perspective(fov, near, far) @ look_at(origin, d, (0, 0, 1))
+            out.append({"vp": vp, "origin": origin, "ortho": 0.0, "fwd": d / np.linalg.norm(d),
+                        "texel": 2.0 * math.tan(fov / 2) / res, "light": li})
+            continue
+        fov = math.radians(90.0)  # exact cube: every direction in exactly one face
+        for fwd, up in CUBE_DIRS:
+            if L.type == LightType.AREA and float(np.dot(fwd, L.direction)) < -0.99:
+                continue  # a one-sided area light emits nothing into the face behind it
+            vp = perspective(fov, near, far) @ look_at(origin, fwd, up)
+            out.append({"vp": vp, "origin": origin, "ortho": 0.0, "fwd": np.asarray(fwd, np.float64),
+                        "texel": 2.0 / res, "light": li})
+    return out[:max_views]
+
+
+class RSMPass(Pass):
+    """Renders the reflective shadow maps of every shadow-casting light (see module doc)."""
+
+    name = "rsm"
+    kind = "raster"
+    provides = INDIRECT
+    writes = (RSM_POS, RSM_NRM, RSM_FLUX, RSM_VIEWS)
+    declared = (Res(RSM_POS, managed=False, check="finite"), Res(RSM_NRM, managed=False, check="finite"),
+                Res(RSM_FLUX, managed=False, check="radiance"),
+                Res(RSM_VIEWS, kind=HOST, managed=False, check="none"))
+    history_resets = frozenset()
+    params = (
+        Param("rsm_resolution", 128, 16, 1024, "texels per side of one RSM view"),
+        Param("sun_extent", 0.0, 0.0, 1e5, "sun RSM: half size of the region around the camera (0 = whole scene)"),
+    )
+    quality_ladder = ({"rsm_resolution": 64}, {"rsm_resolution": 128}, {"rsm_resolution": 256},
+                      {"rsm_resolution": 512})
+
+    def __init__(self, quality=None, **props):
+        super().__init__(quality, **props)
+        self.tex = None
+        self.fbo = self.depth = None
+        self.views = RSMViews()
+
+    def _ensure(self, rc, n: int, res: int):
+        import moderngl
+
+        cols = max(1, math.ceil(math.sqrt(max(n, 1))))
+        rows = max(1, math.ceil(max(n, 1) / cols))
+        size = (cols * res, rows * res)
+        if self.tex is None or self.tex[0].size != size:
+            self.release()
+            self.tex = [rc.ctx.texture(size, 4, dtype=dt) for dt in ("f4", "f2", "f4")]
+            for t in self.tex:
+                t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+                t.repeat_x = t.repeat_y = False
+            self.depth = rc.ctx.depth_texture(size)
+            self.fbo = rc.ctx.framebuffer(color_attachments=self.tex, depth_attachment=self.depth)
+        for name, t in zip((RSM_POS, RSM_NRM, RSM_FLUX), self.tex):
+            rc.resources[name] = t
+        return cols
+
+    def execute(self, rc, frame):
+        import moderngl
+
+        scene = rc.scene.scene
+        res = int(self["rsm_resolution"])
+        views = rsm_views(scene, res, float(self["sun_extent"]))
+        cols = self._ensure(rc, len(views), res)
+        self.views = RSMViews(views, cols, res)
+        rc.resources[RSM_VIEWS] = self.views
+        ctx = rc.ctx
+        prog = rc.programs.program("raster3d/rsm.vert", "raster3d/rsm.frag")
+        rc.scene.bind(prog)
+        self.fbo.use()
+        self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
+        ctx.enable(moderngl.DEPTH_TEST)
+        ctx.disable(moderngl.CULL_FACE)
+        for i, v in enumerate(views):
+            ctx.viewport = ((i % cols) * res, (i // cols) * res, res, res)
+            set_uniform(prog, "u_view_proj", v["vp"].astype(np.float32))
+            set_uniform(prog, "u_origin", tuple(float(x) for x in v["origin"]))
+            set_uniform(prog, "u_fwd", tuple(float(x) for x in v["fwd"]))
+            set_uniform(prog, "u_ortho", int(v["ortho"]))
+            set_uniform(prog, "u_texel", float(v["texel"]))
+            set_uniform(prog, "u_light", int(v["light"]))
+            rc.scene.draw(prog)
+        ctx.disable(moderngl.DEPTH_TEST)
+
+    def release(self):
+        for o in (self.fbo, *(self.tex or ()), self.depth):
+            if o is not None:
+                o.release()
+        self.fbo = self.depth = None
+        self.tex = None
+
+
+GATHER_PARAMS = (
+    Param("vpl_samples", 64, 4, 1024, "VPL samples per RSM view per pixel per frame"),
+    Param("radius", 1.0, 0.05, 1.5, "sampling disk radius, fraction of the RSM side (1.42 = whole map)"),
+    Param("min_distance", 0.1, 0.0, 10.0, "distance clamp d_min of the 1/d^4 kernel (scene units)"),
+    Param("exact_weights", True, doc="weight samples by the exact inverse density 2ξ1 (default; False = the paper's ξ1², biased dark: cornell 0.81-0.86x)"),
+)
+
+
+def bind_rsm(rc, prog, units: Units, gather: Pass):
+    res = rc.resources
+    units.tex(prog, "u_rsm_pos", res[RSM_POS])
+    units.tex(prog, "u_rsm_nrm", res[RSM_NRM])
+    units.tex(prog, "u_rsm_flux", res[RSM_FLUX])
+    res[RSM_VIEWS].uniforms(prog, res[RSM_POS].size)
+    set_uniform(prog, "u_vpl_samples", int(gather["vpl_samples"]))
+    set_uniform(prog, "u_disk_radius", float(gather["radius"]))
+    set_uniform(prog, "u_min_distance", float(gather["min_distance"]))
+    set_uniform(prog, "u_exact_weights", 1 if gather["exact_weights"] else 0)
+
+
+class RSMGatherPass(Pass):
+    """Low-resolution gather (``rsm.low``, rgb = E/π, the incident irradiance over π)."""
+
+    name = "rsm_gather"
+    provides = INDIRECT
+    reads = (POSITION, NORMAL, GEONORMAL, RSM_POS, RSM_NRM, RSM_FLUX, RSM_VIEWS)
+    writes = ("rsm.low",)
+    declared = (Res("rsm.low", scale="low_scale", check="radiance"),)
+    history_resets = frozenset()
+    params = GATHER_PARAMS + (
+        Param("low_scale", 0.25, 0.125, 1.0, "resolution scale of the first gather"),
+        Param("normal_tolerance", 0.9, 0.0, 1.0, "interpolation: min cosine between normals"),
+        Param("plane_tolerance", 0.02, 0.0, 1.0, "interpolation: max plane distance, fraction of view depth"),
+    )
+    quality_ladder = ({"vpl_samples": 16, "low_scale": 0.25}, {"vpl_samples": 64, "low_scale": 0.25},
+                      {"vpl_samples": 128, "low_scale": 0.5}, {"vpl_samples": 256, "low_scale": 0.5})
+
+    def execute(self, rc, frame):
+        prog = rc.programs.compute("raster3d/rsm_gather.comp", {"RSM_LOW": 1})
+        rc.scene.bind(prog)
+        bind_frame(rc, prog, frame)
+        units = Units(1)
+        bind_gbuffer(rc, prog, units)
+        bind_rsm(rc, prog, units, self)
+        size = scaled(rc.size, float(self["low_scale"]))
+        set_uniform(prog, "u_low_size", size)
+        rc.resources["rsm.low"].bind_to_image(0, read=False, write=True)
+        rc.dispatch(prog, (size[0] + 7) // 8, (size[1] + 7) // 8)
+
+
+class RSMResolvePass(Pass):
+    """Full resolution: interpolate ``rsm.low`` where it is valid, gather again elsewhere.
+    Writes ``rsm.raw`` (rgb = E/π, a = 1) and ``rsm.regather`` (1 where gathered again)."""
+
+    name = "rsm_resolve"
+    provides = INDIRECT
+    reads = RSMGatherPass.reads + ("rsm.low",)
+    writes = ("rsm.raw", "rsm.regather")
+    declared = (Res("rsm.raw", check="radiance"), Res("rsm.regather", dtype="f2", check="radiance"))
+    history_resets = frozenset()
+
+    def __init__(self, quality=None, *, gather: RSMGatherPass, **kw):
+        super().__init__(quality, **kw)
+        self.gather = gather
+
+    def execute(self, rc, frame):
+        prog = rc.programs.compute("raster3d/rsm_gather.comp", {"RSM_RESOLVE": 1})
+        rc.scene.bind(prog)
+        bind_frame(rc, prog, frame)
+        units = Units(1)
+        bind_gbuffer(rc, prog, units)
+        bind_rsm(rc, prog, units, self.gather)
+        units.tex(prog, "u_low", rc.resources["rsm.low"])
+        g = self.gather
+        set_uniform(prog, "u_low_size", scaled(rc.size, float(g["low_scale"])))
+        set_uniform(prog, "u_low_scale", float(g["low_scale"]))
+        set_uniform(prog, "u_normal_tol", float(g["normal_tolerance"]))
+        set_uniform(prog, "u_plane_tol", float(g["plane_tolerance"]))
+        rc.resources["rsm.raw"].bind_to_image(0, read=False, write=True)
+        rc.resources["rsm.regather"].bind_to_image(1, read=False, write=True)
+        rc.dispatch(prog, *rc.groups(8))
+
+
+class RSMDebugPass(Pass):
+    """The flux atlas stretched over the frame (GI_RSM_Flux): what every light's RSM sees,
+    as flux per texel times the texels of one view (W: the view's flux if uniform)."""
+
+    name = "rsm_debug"
+    provides = INDIRECT
+    reads = (RSM_FLUX, RSM_VIEWS)
+    writes = ("rsm.debug_flux",)
+    declared = (Res("rsm.debug_flux", check="radiance"),)
+    history_resets = frozenset()
+
+    def execute(self, rc, frame):
+        prog = rc.programs.compute("raster3d/rsm_debug.comp")
+        rc.resources[RSM_FLUX].use(1)
+        set_uniform(prog, "u_rsm_flux", 1)
+        views = rc.resources[RSM_VIEWS]
+        set_uniform(prog, "u_scale", float(views.res * views.res))
+        rc.resources["rsm.debug_flux"].bind_to_image(0, read=False, write=True)
+        rc.dispatch(prog, *rc.groups(8))

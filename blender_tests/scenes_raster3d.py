@@ -1,0 +1,53 @@
+"""Reproduction scenes for the 3D-raster family (issue 10: RSM, LPV, VXGI), built in code.
+
+* ``two_rooms``: two closed 2 x 2 x 2 m rooms side by side (x in [-2, 0] and [0, 2]) that
+  share one wall of zero thickness at x = 0 (thinner than any RSM texel, LPV cell or voxel).
+  A point light (200 W, warm) hangs in the left room near the shared wall; the camera
+  stands in the right room looking at the shared wall. In Cycles the right room is black:
+  whatever a technique shows there is light leaking through the wall. ``lit_camera``
+  moves the camera into the left room (the lit level the leak is compared with).
+
+``build(name, resolution)`` returns a new ``bpy`` scene (the caller removes it).
+"""
+from __future__ import annotations
+
+import math
+
+import bpy
+
+SCENES = ("two_rooms",)
+
+
+def _two_rooms(b, mp, mw, lit_camera=False):
+    white = mp(b.n("white"), (0.75, 0.75, 0.75), 1.0, specular=0.0)
+    warm = mp(b.n("warm"), (0.8, 0.55, 0.35), 1.0, specular=0.0)
+    b.room("left", (-2, -1, 0), (0, 1, 2), {"floor": white, "ceiling": white, "-x": warm, "-y": white,
+                                            "+y": white}, skip=("+x",))
+    b.room("right", (0, -1, 0), (2, 1, 2), {"floor": white, "ceiling": white, "+x": white, "-y": white,
+                                           "+y": white}, skip=("-x",))
+    # the shared wall: one quad, zero thickness, both sides white
+    b.quad("shared_wall", [(0, -1, 0), (0, 1, 0), (0, 1, 2), (0, -1, 2)], white)
+    b.light("lamp", "POINT", (-0.4, 0.0, 1.2), energy=200.0, shadow_soft_size=0.0, color=(1.0, 0.9, 0.75))
+    if lit_camera:
+        b.camera((-1.9, -0.9, 1.7), (-0.3, 0.3, 0.6), lens=16.0)
+    else:
+        b.camera((1.9, 0.0, 1.0), (0.0, 0.0, 1.0), lens=16.0)
+    b.scene.world = mw(b.n("world"), (0, 0, 0), 0.0)
+
+
+def build(name: str, resolution: int = 48, *, lit_camera: bool = False):
+    from gi_preview.blender import demo_scenes
+
+    if name not in SCENES:
+        raise ValueError(f"unknown raster3d scene {name!r}; choose one of {', '.join(SCENES)}")
+    sc = bpy.data.scenes.new(f"raster3d_{name}{'_lit' if lit_camera else ''}")
+    r = sc.render
+    r.resolution_x = r.resolution_y = int(resolution)
+    r.resolution_percentage = 100
+    sc.frame_current = 1
+    b = demo_scenes._Builder(sc, f"r3d_{name}{'_lit' if lit_camera else ''}")
+    _two_rooms(b, demo_scenes.make_principled, demo_scenes.make_world, lit_camera=lit_camera)
+    return sc
+
+
+__all__ = ["SCENES", "build", "math"]

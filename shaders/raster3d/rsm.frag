@@ -1,0 +1,60 @@
+// rsm.frag — one texel of a reflective shadow map (Dachsbacher & Stamminger 2005): world
+// position, normal turned towards the light, and the flux the texel's surface patch
+// reflects diffusely, in W, from the light in Cycles' units:
+//   perspective view (point, spot, area from its centre): Φ = ρ_d(NoL) · I(ω) · dω,
+//     dω = t² cos³α (t: texel size on the unit image plane, α: angle to the view axis);
+//     I = intensity (W/sr) · spot cone, or for an area light L_e · A · max(0, cos θ_L);
+//   orthographic view (sun): Φ = ρ_d(NoL) · E · A_texel.
+// The first surface along each texel is the one the light reaches (no visibility needed).
+#define USE_SCENE_BUFFERS
+#include "lib/common.glsl"
+#include "lib/textures.glsl"
+#include "lib/sampling.glsl"
+#include "lib/brdf.glsl"
+#include "lib/albedo.glsl"
+#include "lib/lights.glsl"
+
+in vec3 v_world;
+in vec3 v_normal;
+in vec2 v_uv;
+flat in int v_material;
+
+uniform sampler2DArray u_textures;
+uniform int u_material_count;
+uniform int u_light;
+uniform vec3 u_origin;
+uniform vec3 u_fwd;
+uniform int u_ortho;
+uniform float u_texel;
+
+layout(location = 0) out vec4 o_pos;
+layout(location = 1) out vec4 o_nrm;
+layout(location = 2) out vec4 o_flux;
+
+void main() {
+    int mid = (v_material >= 0 && v_material < u_material_count) ? v_material : u_material_count;
+    Material m = materials[mid];
+    Light L = lights[u_light];
+    int type = int(L.pos_type.w + 0.5);
+    vec3 toL = u_ortho == 1 ? -u_fwd : normalize(u_origin - v_world);
+    vec3 n = normalize(v_normal);
+    if (dot(n, toL) < 0.0) n = -n;
+    float NoL = clamp(dot(n, toL), 0.0, 1.0);
+    Surface s = make_surface(m, material_base_color(u_textures, m, v_uv));
+    vec3 rho = diffuse_albedo(s, max(NoL, 1e-4));
+    vec3 flux;
+    if (u_ortho == 1) {
+        flux = rho * L.color.rgb * (u_texel * u_texel);
+    } else {
+        vec3 w = normalize(v_world - u_origin);
+        float ca = max(dot(w, u_fwd), 1e-4);
+        float domega = u_texel * u_texel * ca * ca * ca;
+        vec3 I = L.color.rgb;
+        if (type == LIGHT_SPOT) I *= spot_attenuation(L, w);
+        if (type == LIGHT_AREA) I = L.color.rgb * L.axis_v.w * max(dot(w, L.dir_radius.xyz), 0.0);
+        flux = rho * I * domega;
+    }
+    o_pos = vec4(v_world, 1.0);
+    o_nrm = vec4(n, 0.0);
+    o_flux = vec4(sanitize(flux), 1.0);
+}
