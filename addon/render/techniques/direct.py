@@ -56,7 +56,7 @@ class DirectLightPass(Pass):
         Param("mesh_exact_max", 64, 0, 256, "emissive meshes up to this many triangles are integrated exactly"),
         Param("rt_shadow_rays", 4, 0, 8,
               "lights without a shadow map: ray-traced shadow rays per pixel per frame (lights chosen by contribution)"),
-        Param("far_samples", 1, 0, 4, "lights outside a tile's list: light samples per pixel per frame"),
+        Param("far_samples", 4, 0, 8, "lights outside a tile's list: light samples per pixel per frame"),
         Param("cull_fraction", 0.05, 0.0, 1.0, "light culling when the graph has no light_cull pass (see light_cull.py)"),
     )
     quality_ladder = ({"glossy_samples": 1}, {"glossy_samples": 2}, {"glossy_samples": 4}, {"glossy_samples": 8})
