@@ -127,3 +127,43 @@ def test_compare_cancel_within_a_second():
         assert sc.render.engine == engine_before and sc.cycles.samples == cycles_samples
     finally:
         bpy.data.scenes.remove(sc)
+
+
+def test_modal_operator_escape_within_a_second():
+    """The operator's own modal(): timer events poll the job (progress shown), Esc returns
+    CANCELLED with the Cycles process gone, within a second of the key press (measured)."""
+    sc = build_demo("cornell", resolution=64)
+    try:
+        sc.gi_preview.technique = "DIRECT"
+        sc.gi_preview.samples = 100000
+        reports, progress, status = [], [], []
+        wm = types.SimpleNamespace(progress_update=progress.append, progress_end=lambda: None,
+                                   event_timer_remove=lambda t: None)
+        ctx = types.SimpleNamespace(scene=sc, view_layer=sc.view_layers[0], window_manager=wm,
+                                    workspace=types.SimpleNamespace(status_text_set=status.append), screen=None)
+        op = _fake_operator(100000)
+        op._timer = object()
+        op.report = lambda kind, msg: reports.append((kind, msg))
+        op._finish = lambda c: compare_ops.GIPREVIEW_OT_compare._finish(op, c)
+        op._job = compare_ops.CompareJob(op, ctx)
+        op._job.start()
+        modal = compare_ops.GIPREVIEW_OT_compare.modal
+        timer, esc = types.SimpleNamespace(type="TIMER"), types.SimpleNamespace(type="ESC")
+        t0 = time.perf_counter()
+        while op._job.ref_proc.progress == 0.0 and time.perf_counter() - t0 < 120:
+            assert modal(op, ctx, timer) == {"RUNNING_MODAL"}
+            time.sleep(0.1)
+        assert modal(op, ctx, timer) == {"RUNNING_MODAL"}
+        assert progress and "Esc to cancel" in status[-1]
+        assert modal(op, ctx, types.SimpleNamespace(type="MOUSEMOVE")) == {"PASS_THROUGH"}
+        t_esc = time.perf_counter()
+        assert modal(op, ctx, esc) == {"CANCELLED"}
+        esc_ms = (time.perf_counter() - t_esc) * 1e3
+        assert op._job.ref_proc.proc.poll() is not None
+        print(f"Esc -> operator cancelled, Cycles process gone: {esc_ms:.0f} ms")
+        assert esc_ms < 1000.0
+        assert reports[-1][0] == {"WARNING"} and "cancelled" in reports[-1][1]
+        assert status[-1] is None  # status bar cleared
+        op._job.future.exception(timeout=10)
+    finally:
+        bpy.data.scenes.remove(sc)
