@@ -130,6 +130,11 @@ def measure(checkout: str) -> dict:
     uploads = []
     _fake_gpu(uploads)
     out = {"checkout": checkout, "scenes": {}}
+    try:
+        out["commit"] = subprocess.run(["git", "-C", checkout, "rev-parse", "--short", "HEAD"], capture_output=True,
+                                       text=True, check=True).stdout.strip()
+    except (OSError, subprocess.CalledProcessError):
+        pass
 
     def dg_of(sc):
         with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
@@ -285,9 +290,18 @@ def report(before: dict, after: dict, out_dir: Path):
     def fmt(v):
         return f"{v:.1f}" if isinstance(v, float) else str(v)
 
+    def commit(res):
+        if res.get("commit"):
+            return res["commit"]
+        try:
+            return subprocess.run(["git", "-C", res["checkout"], "rev-parse", "--short", "HEAD"], capture_output=True,
+                                  text=True, check=True).stdout.strip()
+        except (OSError, subprocess.CalledProcessError, KeyError):
+            return "?"
+
     lines = ["# Viewport and F12 benchmark: before / after the non-blocking viewport", "",
-             f"`python scripts/bench_viewport.py --before /tmp/gi_before` (before = commit f05937a, "
-             f"after = this checkout). {W} x {H}, DIRECT q1, {FRAMES} frames; "
+             f"`python scripts/bench_viewport.py --before /tmp/gi_before` (before = commit {commit(before)}, "
+             f"after = commit {commit(after)}). {W} x {H}, DIRECT q1, {FRAMES} frames; "
              f"{after.get('gl_renderer')} on {os.cpu_count()} CPU cores ({platform.machine()}); "
              "absolute milliseconds are llvmpipe's, the ratios are the point.", ""]
     for scene in after["scenes"]:
