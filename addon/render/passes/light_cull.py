@@ -5,8 +5,8 @@ contribution to a white surface facing it falls below ``L_min``, where ``L_min``
 ``cull_fraction`` times the radiance all lights together would give such a surface at the
 scene's radius ``D`` (``sum(I) / (pi D^2)``). So ``R_i = D sqrt(I_i / (f sum I)) + extent_i``
 (I = peak radiant intensity in W/sr: point/spot intensity, area ``Le A``, mesh ``Le_max A``;
-extent = the light's own size). Suns (and the world) reach everywhere. A scene whose lights
-are few never culls anything (one light: R = D / sqrt(f) = 4.5 D at the default f = 0.05).
+extent = the light's own size). Suns (and the world) reach everywhere. A scene with fewer
+than ``MIN_CULL_LIGHTS`` (32) lights culls nothing.
 
 Each 16x16 pixel tile lists the lights whose sphere meets the world-space box of its
 G-buffer points. Culling does not drop light: ``direct.comp`` estimates the lights a tile
@@ -29,6 +29,12 @@ TILE_LIGHTS, TILE_BOUNDS, LIGHT_CULL = "direct.tile_lights", "direct.tile_bounds
 TILE = 16  # pixels per tile side (light_cull.comp's work group)
 MAX_TILE_LIST_BYTES = 64 << 20  # the tile lists' buffer: capacity per tile shrinks to fit
 BIND_RANGES, BIND_TILE_LIGHTS, BIND_TILE_BOUNDS = 4, 6, 7
+# Below this many lights nothing is culled: every tile lists every light. Culling pays when
+# the per-pixel loop is long; with a few lights the far-light samples' noise (a glossy
+# highlight of a light outside a tile's diffuse range, divided by its selection probability)
+# costs more than the loop saves (16 lights, 96², 16 frames: relMSE 0.0089 culled, 0.0024 for
+# the code before culling, which shaded every light at every pixel).
+MIN_CULL_LIGHTS = 32
 
 
 def light_ranges(gpu_scene, cull_fraction: float) -> dict:
@@ -69,8 +75,9 @@ def light_ranges(gpu_scene, cull_fraction: float) -> dict:
     f = float(cull_fraction)
     partial = False
     corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    few = n < MIN_CULL_LIGHTS  # shading them all costs less than the noise of leaving some out
     for i in range(n):
-        if not finite[i] or f <= 0 or total <= 0:
+        if not finite[i] or f <= 0 or total <= 0 or few:
             ranges[i, 3] = -1.0
             continue
         R = D * np.sqrt(intensity[i] / (f * total)) + extent[i]
