@@ -83,6 +83,12 @@ def _settings(scene):
     return s.technique, int(s.quality), int(s.samples)
 
 
+def _filter_options(scene) -> dict:
+    """scene.gi_preview.denoiser / use_taa, as session.render options (end the graph)."""
+    s = scene.gi_preview
+    return {"denoiser": str(getattr(s, "denoiser", "NONE")), "use_taa": bool(getattr(s, "use_taa", False))}
+
+
 def final_render(engine, depsgraph):
     if display_queue:
         label, image = display_queue.pop(0)
@@ -104,7 +110,7 @@ def final_render(engine, depsgraph):
     try:
         res = session.render(data, technique, quality, samples, progress=engine.update_progress,
                              cancel=engine.test_break, keep_history=bool(engine.is_animation),
-                             session="final")
+                             session="final", **_filter_options(scene))
     except session.Cancelled:
         return
     except (GLUnavailableError, SceneError, ShaderError, ValueError) as exc:
@@ -285,7 +291,8 @@ def view_draw(engine, context, depsgraph):
     cam = _region_camera(context)
     technique, quality, _ = _settings(scene)
     target = int(scene.gi_preview.viewport_samples)
-    key = (technique, quality, w, h, cam.view.tobytes(), cam.projection.tobytes(), st.data_version)
+    key = (technique, quality, w, h, cam.view.tobytes(), cam.projection.tobytes(), st.data_version,
+           tuple(_filter_options(scene).values()))
     if key != st.key:
         st.key, st.count = key, 0
     # a finished frame: show it (even one of an older view: the newest image there is)
@@ -315,7 +322,8 @@ def view_draw(engine, context, depsgraph):
         try:
             st.future = session.submit_render(
                 data, technique, quality, 1, continue_accumulation=True, keep_history=True,
-                session=st.session_for(context.region_data), on_done=_redraw_callback(engine, st))
+                session=st.session_for(context.region_data), on_done=_redraw_callback(engine, st),
+                **_filter_options(scene))
             st.future_key = st.key
             st.error = None
         except (GLUnavailableError, ValueError) as exc:

@@ -35,6 +35,15 @@ class GIPreviewSceneSettings(bpy.types.PropertyGroup):
     quality: bpy.props.IntProperty(
         name="Quality", default=1, min=0, max=3, update=_update,
         description="Level of the technique's quality ladder (0 = fastest, 3 = most accurate)")
+    denoiser: bpy.props.EnumProperty(
+        name="Denoiser", default="NONE", update=_update,
+        items=[("NONE", "None", "No filter"),
+               ("ATROUS", "À-Trous", "Edge-avoiding à-trous wavelet filter (Dammertz 2010)"),
+               ("SVGF", "SVGF", "Spatiotemporal variance-guided filtering (Schied 2017)")],
+        description="Filter that ends the technique's frame graph (for noisy techniques)")
+    use_taa: bpy.props.BoolProperty(
+        name="TAA", default=False, update=_update,
+        description="End the frame graph with temporal anti-aliasing (Karis 2014)")
     viewport_scale: bpy.props.FloatProperty(
         name="Viewport Resolution", default=0.5, min=0.1, max=1.0, subtype="FACTOR",
         description="Viewport render resolution relative to the region (lower is faster)")

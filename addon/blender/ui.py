@@ -40,6 +40,8 @@ class GIPREVIEW_RENDER_PT_technique(GIPreviewPanel, bpy.types.Panel):
         s = context.scene.gi_preview
         layout.prop(s, "technique")
         layout.prop(s, "quality")
+        layout.prop(s, "denoiser")
+        layout.prop(s, "use_taa")
         col = layout.column(align=True)
         col.prop(s, "samples", text="Render Samples")
         col.prop(s, "viewport_samples", text="Viewport Samples")

@@ -73,11 +73,16 @@ class Session:
         self._last_graph = None
 
     # -------------------------------------------------------------- helpers
-    def _graph(self, technique_id: str, quality: int):
-        key = (technique_id, quality)
+    def _graph(self, technique_id: str, quality: int, denoiser: str = "NONE", use_taa: bool = False):
+        key = (technique_id, quality, (denoiser or "NONE").upper(), bool(use_taa))
         if key not in self.graphs:
             tech = techniques.get(technique_id)()
-            self.graphs[key] = (tech, tech.build(quality))
+            if key[2] != "NONE" or key[3]:  # scene.gi_preview.denoiser / use_taa end the graph
+                from .passes.filters import with_filters
+                graph = framegraph.FrameGraph(with_filters(tech.passes(quality), key[2], key[3], quality))
+            else:
+                graph = tech.build(quality)
+            self.graphs[key] = (tech, graph)
         return self.graphs[key]
 
     def _accumulate(self, name: str, res_name: str, weight: float):
@@ -122,7 +127,8 @@ class Session:
     def render_steps(self, scene: SceneData, technique: str, quality: int, samples: int, *,
                      cancel: threading.Event | None = None, progress=None,
                      continue_accumulation: bool = False, keep_history: bool = False,
-                     camera_cut: bool | None = None, warmup: bool | None = None):
+                     camera_cut: bool | None = None, warmup: bool | None = None,
+                     denoiser: str = "NONE", use_taa: bool = False):
         """Render ``samples`` accumulated frames as a generator: it yields after every frame
         (warm-up frames included) so the GL thread can serve other sessions in between, and
         returns the RenderResult (``StopIteration.value``).
@@ -137,7 +143,7 @@ class Session:
         t_start = time.perf_counter()
         setup0 = self._setup_clock()
         analysis = analyse(scene)
-        tech, graph = self._graph(technique, quality)
+        tech, graph = self._graph(technique, quality, denoiser, use_taa)
         changes = self.gpu_scene.update(scene)
         size = (scene.width, scene.height)
         if self.rc is None:
@@ -154,7 +160,7 @@ class Session:
         view = cam.view.astype(np.float64)
         proj = cam.projection.astype(np.float64)
         vp = proj @ view
-        acc_key = (technique, quality, size, self.gpu_scene.version, vp.astype(np.float32).tobytes())
+        acc_key = (technique, quality, denoiser, use_taa, size, self.gpu_scene.version, vp.astype(np.float32).tobytes())
         fresh = not (continue_accumulation and acc_key == self.acc_key)
         if fresh:
             self.acc_count = 0

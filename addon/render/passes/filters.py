@@ -1,0 +1,230 @@
+"""Denoising filters any noisy technique's graph can end with (shaders/filters/).
+
+* ``AtrousPass`` (Dammertz et al. 2010, "Edge-avoiding À-Trous wavelet transform for fast
+  global illumination filtering"): the colour is demodulated by the G-buffer albedo, filtered
+  by ``iterations`` à-trous steps (5x5 B3 taps spaced 1, 2, 4, ... pixels) with colour,
+  normal and position edge-stopping weights (the colour sigma halves each step, as in the
+  paper), and remodulated. No temporal state.
+* ``SVGFPass`` (Schied et al. 2017, "Spatiotemporal variance-guided filtering"): demodulated
+  illumination reprojected through ``gbuffer.motion`` with a history length, temporal
+  luminance moments (spatial estimate while the history is shorter than 4 frames),
+  variance-guided à-trous whose first iteration is fed back as next frame's history, and
+  remodulation.
+* ``TAAPass`` (Karis 2014): reprojected history, YCoCg neighbourhood clip, exponential blend.
+  The camera jitter is the session's R2 sequence (frame 0 at the pixel centre), which the
+  G-buffer and every pass already use; TAA does not add its own (Halton) jitter: two jitter
+  sequences would disagree, and R2 is the better-distributed 2D sequence.
+
+History is graph-owned (``Res(..., history=True)``, read as ``name@prev``); every history
+read is checked for finiteness, so a NaN injected into history is gone within one frame.
+``with_filters(passes, denoiser, taa)`` appends the filters (and a G-buffer if the graph
+has none) to a technique's passes: the session does this for ``scene.gi_preview.denoiser``
+and ``scene.gi_preview.use_taa``.
+"""
+from __future__ import annotations
+
+from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Param, Pass, Res
+from ..gpu_scene import set_uniform
+from .gbuffer import ALBEDO, MOTION, NORMAL, POSITION, GBufferPass
+from .screen_space import Units, bind_frame
+
+COLOR = "color"
+DENOISERS = ("NONE", "ATROUS", "SVGF")
+
+# filtered illumination depends on lights/materials/geometry: those edits restart it;
+# camera and object motion are followed by reprojection (gbuffer.motion)
+FILTER_RESETS = frozenset({CAMERA_CUT, PARAM_CHANGE, "geometry", "materials", "lights", "textures"})
+
+
+class _FilterPass(Pass):
+    kind = "compute"
+    provides = frozenset()
+    always = True
+
+    def _run(self, rc, prog):
+        rc.dispatch(prog, *rc.groups(8))
+
+    def _atrous(self, rc, frame, src, dst_a, dst_b, iterations, mode, sigma_c, sigma_n, sigma_p,
+                feedback=None, halve_sigma=False):
+        """Run ``iterations`` à-trous steps from ``src`` ping-ponging between two textures;
+        after the first step copy into ``feedback`` (SVGF's history). Returns the name of
+        the texture holding the result."""
+        res = rc.resources
+        prog = rc.programs.compute("filters/atrous.comp")
+        bind_frame(rc, prog, frame)
+        cur = src
+        outs = (dst_a, dst_b)
+        for it in range(int(iterations)):
+            dst = outs[it % 2]
+            units = Units(1)
+            units.tex(prog, "u_in", res[cur])
+            units.tex(prog, "u_gb_position", res[POSITION])
+            units.tex(prog, "u_gb_normal", res[NORMAL])
+            set_uniform(prog, "u_step", 1 << it)
+            set_uniform(prog, "u_mode", int(mode))
+            set_uniform(prog, "u_sigma_c", float(sigma_c) * (0.5 ** it if halve_sigma else 1.0))
+            set_uniform(prog, "u_sigma_n", float(sigma_n))
+            set_uniform(prog, "u_sigma_p", float(sigma_p))
+            res[dst].bind_to_image(0, read=False, write=True)
+            self._run(rc, prog)
+            rc.ctx.memory_barrier(0x0008 | 0x0020)  # the next step fetches what this one stored
+            cur = dst
+            if it == 0 and feedback is not None:
+                self._copy(rc, cur, feedback, keep_alpha=True)
+        return cur
+
+    def _copy(self, rc, src, dst, keep_alpha=False):
+        res = rc.resources
+        if keep_alpha:  # a straight texture copy keeps the variance channel
+            prog = rc.programs.compute("filters/copy.comp", {"KEEP_ALPHA": 1})
+        else:
+            prog = rc.programs.compute("filters/copy.comp")
+        res[src].use(1)
+        set_uniform(prog, "u_in", 1)
+        res[dst].bind_to_image(0, read=False, write=True)
+        self._run(rc, prog)
+        rc.ctx.memory_barrier(0x0008 | 0x0020)
+
+    def _modulate(self, rc, src, dst, demod: bool):
+        res = rc.resources
+        prog = rc.programs.compute("filters/modulate.comp")
+        units = Units(1)
+        units.tex(prog, "u_in", res[src])
+        units.tex(prog, "u_gb_albedo", res[ALBEDO])
+        units.tex(prog, "u_gb_position", res[POSITION])
+        set_uniform(prog, "u_demod", 1 if demod else 0)
+        res[dst].bind_to_image(0, read=False, write=True)
+        self._run(rc, prog)
+        rc.ctx.memory_barrier(0x0008 | 0x0020)
+
+
+class AtrousPass(_FilterPass):
+    """Edge-avoiding à-trous wavelet filter of ``color`` (no temporal state)."""
+
+    name = "atrous"
+    reads = (COLOR, ALBEDO, NORMAL, POSITION)
+    writes = (COLOR, "atrous.a", "atrous.b")
+    declared = (Res(COLOR, check="radiance"), Res("atrous.a", check="radiance"), Res("atrous.b", check="radiance"))
+    history_resets = frozenset()
+    params = (
+        Param("iterations", 5, 1, 8, "à-trous steps (kernel spacing 1, 2, 4, ... pixels)"),
+        Param("sigma_color", 0.8, 1e-3, 10.0, "colour sigma of the first step (tone-mapped units; halved per step)"),
+        Param("sigma_normal", 0.3, 1e-3, 2.0, "normal sigma (|n - n'|)"),
+        Param("sigma_position", 1.0, 1e-3, 100.0, "tangent-plane distance sigma (pixel footprints per pixel of tap distance)"),
+    )
+    quality_ladder = ({"iterations": 3}, {"iterations": 4}, {"iterations": 5}, {"iterations": 6})
+
+    def execute(self, rc, frame):
+        self._modulate(rc, COLOR, "atrous.a", demod=True)
+        prog_src = "atrous.a"
+        out = self._atrous(rc, frame, prog_src, "atrous.b", "atrous.a", self["iterations"], 0,
+                           self["sigma_color"], self["sigma_normal"], self["sigma_position"], halve_sigma=True)
+        self._modulate(rc, out, COLOR, demod=False)
+
+
+class SVGFPass(_FilterPass):
+    """Spatiotemporal variance-guided filtering of ``color``."""
+
+    name = "svgf"
+    reads = (COLOR, ALBEDO, NORMAL, POSITION, MOTION, "svgf.illum@prev", "svgf.moments@prev", "svgf.pos@prev",
+             "svgf.nrm@prev")
+    writes = (COLOR, "svgf.illum", "svgf.moments", "svgf.pos", "svgf.nrm", "svgf.a", "svgf.b")
+    declared = (Res(COLOR, check="radiance"),
+                Res("svgf.illum", history=True, check="radiance"),
+                Res("svgf.moments", history=True, check="finite"),
+                Res("svgf.pos", history=True, check="finite"),
+                Res("svgf.nrm", history=True, check="finite"),
+                Res("svgf.a", check="radiance"), Res("svgf.b", check="radiance"))
+    history_resets = FILTER_RESETS
+    params = (
+        Param("iterations", 5, 1, 8, "variance-guided à-trous steps"),
+        Param("max_history", 32, 1, 1024, "history length cap (alpha = 1 / length, at least 1/max_history)"),
+        Param("sigma_luminance", 4.0, 0.1, 100.0, "luminance edge-stopping (times the standard deviation)"),
+        Param("sigma_normal", 128.0, 1.0, 1024.0, "normal exponent"),
+        Param("sigma_depth", 1.0, 1e-3, 100.0, "tangent-plane distance sigma (pixel footprints per pixel of tap distance)"),
+        Param("feedback", 1, 0, 1, "history fed back: 1 = the first à-trous iteration (the paper), 0 = the temporal integration"),
+    )
+    quality_ladder = ({"iterations": 3}, {"iterations": 4}, {"iterations": 5}, {"iterations": 6})
+
+    def execute(self, rc, frame):
+        res = rc.resources
+        prog = rc.programs.compute("filters/svgf_temporal.comp")
+        bind_frame(rc, prog, frame)
+        units = Units(1)
+        for uni, name in (("u_color", COLOR), ("u_gb_albedo", ALBEDO), ("u_gb_position", POSITION),
+                          ("u_gb_normal", NORMAL), ("u_gb_motion", MOTION), ("u_hist_illum", "svgf.illum@prev"),
+                          ("u_hist_moments", "svgf.moments@prev"), ("u_hist_pos", "svgf.pos@prev"),
+                          ("u_hist_nrm", "svgf.nrm@prev")):
+            units.tex(prog, uni, res[name])
+        set_uniform(prog, "u_reset", 0 if (self.history_valid and not frame.camera_cut) else 1)
+        set_uniform(prog, "u_max_history", float(self["max_history"]))
+        for unit, name in enumerate(("svgf.a", "svgf.moments", "svgf.pos", "svgf.nrm")):
+            res[name].bind_to_image(unit, read=False, write=True)
+        self._run(rc, prog)
+        rc.ctx.memory_barrier(0x0008 | 0x0020)
+        if int(self["feedback"]) == 0:
+            self._copy(rc, "svgf.a", "svgf.illum", keep_alpha=True)
+        n = int(self["iterations"])
+        # the first iteration's output becomes next frame's history (svgf.illum)
+        out = self._atrous(rc, frame, "svgf.a", "svgf.b", "svgf.a", n, 1, self["sigma_luminance"],
+                           self["sigma_normal"], self["sigma_depth"],
+                           feedback="svgf.illum" if int(self["feedback"]) == 1 else None)
+        self._modulate(rc, out, COLOR, demod=False)
+
+
+class TAAPass(_FilterPass):
+    """Temporal anti-aliasing of ``color`` (after any denoiser)."""
+
+    name = "taa"
+    reads = (COLOR, MOTION, POSITION, "taa.history@prev")
+    writes = (COLOR, "taa.history")
+    declared = (Res(COLOR, check="radiance"), Res("taa.history", history=True, filter_linear=True, check="radiance"))
+    history_resets = FILTER_RESETS
+    params = (
+        Param("alpha", 0.1, 0.01, 1.0, "weight of the current frame"),
+        Param("gamma", 1.25, 0.25, 4.0, "neighbourhood box: mean ± gamma sigma (inside min/max)"),
+    )
+    quality_ladder = ({"alpha": 0.2}, {"alpha": 0.1}, {"alpha": 0.1, "gamma": 1.0}, {"alpha": 0.05, "gamma": 1.0})
+
+    def execute(self, rc, frame):
+        res = rc.resources
+        prog = rc.programs.compute("filters/taa.comp")
+        units = Units(1)
+        for uni, name in (("u_color", COLOR), ("u_hist", "taa.history@prev"), ("u_gb_motion", MOTION),
+                          ("u_gb_position", POSITION)):
+            units.tex(prog, uni, res[name])
+        set_uniform(prog, "u_reset", 0 if (self.history_valid and not frame.camera_cut) else 1)
+        set_uniform(prog, "u_alpha", float(self["alpha"]))
+        set_uniform(prog, "u_gamma", float(self["gamma"]))
+        res["taa.history"].bind_to_image(0, read=False, write=True)
+        self._run(rc, prog)
+        rc.ctx.memory_barrier(0x0008 | 0x0020)
+        self._copy(rc, "taa.history", COLOR)
+
+
+def filter_passes(denoiser: str = "NONE", taa: bool = False, quality=None) -> list:
+    """The filter passes for a denoiser id (``NONE``, ``ATROUS``, ``SVGF``) and TAA."""
+    d = (denoiser or "NONE").upper()
+    if d not in DENOISERS:
+        raise ValueError(f"unknown GI Preview denoiser '{denoiser}' (choose one of {', '.join(DENOISERS)})")
+    out = []
+    if d == "ATROUS":
+        out.append(AtrousPass(quality))
+    elif d == "SVGF":
+        out.append(SVGFPass(quality))
+    if taa:
+        out.append(TAAPass(quality))
+    return out
+
+
+def with_filters(passes: list, denoiser: str = "NONE", taa: bool = False, quality=None) -> list:
+    """``passes`` followed by the requested filters (a filter already in the graph is not
+    added twice); a G-buffer pass goes first when no pass of the graph writes one."""
+    names = {p.name for p in passes}
+    extra = [f for f in filter_passes(denoiser, taa, quality) if f.name not in names]
+    if not extra:
+        return list(passes)
+    out = list(passes)
+    if not any(POSITION in p.writes for p in passes):
+        out.insert(0, GBufferPass(quality))
+    return out + extra

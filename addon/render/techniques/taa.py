@@ -1,0 +1,23 @@
+"""TAA: 1-spp path tracing + temporal anti-aliasing (Karis 2014): reprojection through the
+G-buffer motion, YCoCg neighbourhood clip, exponential history. The camera jitter is the
+session's R2 sequence (see passes/filters.py). Docs: docs/techniques/TAA.md.
+
+Parameters (pass ``taa``): alpha (current-frame weight), gamma (box width in sigmas).
+Quality ladder: alpha 0.2, 0.1, 0.1 (gamma 1), 0.05 (gamma 1). Warm-up: 8 frames."""
+from __future__ import annotations
+
+from ..passes.filters import TAAPass
+from . import register
+from ._filtered import FilteredPT
+
+
+@register
+class TAA(FilteredPT):
+    id = "TAA"
+    label = "TAA (PT 1 spp)"
+    description = "1-spp path tracing with temporal anti-aliasing (Karis 2014)"
+    cost_rank = 305
+    warmup_frames = 8
+
+    def filters(self, quality):
+        return [TAAPass(quality)]

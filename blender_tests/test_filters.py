@@ -1,0 +1,288 @@
+"""The denoising filters (issue 11): ATROUS, SVGF, TAA as technique ids (1-spp PT + filter)
+and as ``denoiser`` / ``use_taa`` options that end any technique's graph.
+
+Measured against Cycles (full, 256 spp, 40-48 px, cached references):
+* SVGF on the Cornell box and the sun-lit room, still camera, the frame shown after 16
+  frames: relMSE <= 1/4 of the unfiltered 1-spp path tracer's (mean of 4 single frames).
+* Moving camera (a pan of 8 frames, then still): the error of the disoccluded pixels
+  (those not visible from the first pose) at 8 frames after the stop is within 1.5x of
+  (or below) a still camera's error after as many frames, for SVGF and TAA; the temporal
+  stability figure (mean |frame-to-frame difference| over the pan) is printed against
+  Cycles' and, for SVGF, asserted within 2x.
+* NaN written into every history texture is gone from image and history after one frame.
+* 200 frames of a moving camera stay finite and bounded (test_stability's bound).
+* ``denoiser``/``use_taa`` put the filters (and a G-buffer) into PT's graph; a bad
+  denoiser id is a clear ValueError.
+Images go to blender_tests/_artifacts/filters/ for a person to look at.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+pytest.importorskip("moderngl")
+
+from gi_preview.blender import demo_scenes as D  # noqa: E402
+from gi_preview.blender.export import export_scene  # noqa: E402
+from gi_preview.blender.reference import evaluated_depsgraph, get_reference  # noqa: E402
+from gi_preview.render import session  # noqa: E402
+from gi_preview.render.gl import get_gl  # noqa: E402
+
+RES = 40
+REF_SPP = 256
+ART = Path(__file__).resolve().parent / "_artifacts" / "filters"
+
+
+def relmse(a, b) -> float:
+    return float(np.mean((a[..., :3] - b[..., :3]) ** 2 / (b[..., :3] ** 2 + 1e-2)))
+
+
+def relmse_map(a, b):
+    return np.mean((a[..., :3] - b[..., :3]) ** 2 / (b[..., :3] ** 2 + 1e-2), axis=-1)
+
+
+def save_png(img, name):
+    try:
+        from PIL import Image
+    except ImportError:
+        return
+    ART.mkdir(parents=True, exist_ok=True)
+    a = np.clip(img[..., :3] / (1 + img[..., :3]) * 1.6, 0, 1) ** (1 / 2.2)
+    Image.fromarray((a[::-1] * 255).astype(np.uint8)).resize((a.shape[1] * 4, a.shape[0] * 4)).save(ART / name)
+
+
+def build(name, res=RES):
+    sc = D.build_demo(name, resolution=res)
+    return sc, export_scene(evaluated_depsgraph(sc))
+
+
+def frames(sd, tech, n, sess, **kw):
+    """The image shown after each of ``n`` viewport-style frames (history kept, no warm-up)."""
+    return [session.render(sd, tech, 1, 1, keep_history=True, warmup=False, session=sess, **kw).image[..., :3]
+            for _ in range(n)]
+
+
+def release(sess):
+    session.release_session(sess).result(timeout=60)
+
+
+def pan(sc, sd, dx):
+    """SceneData and the Blender scene with the camera moved by ``dx`` along its right axis."""
+    cam = sc.camera
+    right = cam.matrix_world.to_3x3().col[0]
+    cam.location = cam.location + right * dx
+    bpy.context.view_layer.update() if bpy.context.scene == sc else None
+    dg = evaluated_depsgraph(sc)
+    m = np.array(sc.camera.matrix_world, np.float32)
+    return dataclasses.replace(sd, camera=dataclasses.replace(sd.camera, matrix_world=m)), dg
+
+
+# ---------------------------------------------------------------- still camera
+@pytest.mark.parametrize("scene_name", ["cornell", "sunlit_room"])
+def test_svgf_still_quarter_of_pt(scene_name):
+    sc, sd = build(scene_name)
+    try:
+        ref = get_reference(sc, "full", REF_SPP).image[..., :3]
+        pt_frames = frames(sd, "PT", 16, "f_pt")
+        pt = [relmse(f, ref) for f in pt_frames[:4]]
+        pt_rel = float(np.mean(pt))
+        imgs = frames(sd, "SVGF", 16, "f_svgf")
+        sv = relmse(imgs[-1], ref)
+        save_png(ref, f"{scene_name}_cycles.png")
+        save_png(imgs[-1], f"{scene_name}_svgf16.png")
+        print(f"{scene_name}: PT 1 spp relMSE {pt_rel:.4f} (frames {', '.join(f'{x:.3f}' for x in pt)}), "
+              f"SVGF after 16 frames {sv:.4f} = {sv / pt_rel:.3f}x")
+        assert np.isfinite(imgs[-1]).all()
+        assert sv <= 0.25 * pt_rel, f"SVGF relMSE {sv:.4f} > 1/4 of 1-spp PT's {pt_rel:.4f}"
+        # the brightness of the 16 samples it averaged: edge-stopping weights are not
+        # energy-conserving; measured SVGF/PT16 0.97 (cornell) and 0.82 (sun-lit room, the
+        # heavy-tailed light through the window; 0.88 with feedback=0): a known loss, bounded here
+        pt16 = float(np.mean(pt_frames))
+        print(f"  mean: SVGF {imgs[-1].mean():.4f}, 16 PT frames {pt16:.4f}, Cycles {ref.mean():.4f}")
+        assert abs(imgs[-1].mean() / pt16 - 1.0) < 0.25
+    finally:
+        release("f_pt"), release("f_svgf")
+        bpy.data.scenes.remove(sc)
+
+
+def test_atrous_and_taa_reduce_error_cornell():
+    sc, sd = build("cornell")
+    try:
+        ref = get_reference(sc, "full", REF_SPP).image[..., :3]
+        pt_rel = float(np.mean([relmse(f, ref) for f in frames(sd, "PT", 4, "f_pt")]))
+        at = float(np.mean([relmse(f, ref) for f in frames(sd, "ATROUS", 4, "f_at")]))
+        taa = relmse(frames(sd, "TAA", 16, "f_taa")[-1], ref)
+        print(f"cornell: PT 1 spp {pt_rel:.4f}, ATROUS (per frame) {at:.4f}, TAA after 16 frames {taa:.4f}")
+        assert at < 0.5 * pt_rel and taa < 0.5 * pt_rel
+    finally:
+        for s in ("f_pt", "f_at", "f_taa"):
+            release(s)
+        bpy.data.scenes.remove(sc)
+
+
+# ---------------------------------------------------------------- moving camera
+def _disoccluded(sd0, sd1, depth0, depth1):
+    """Pixels of pose 1 whose surface point was not visible from pose 0 (off-screen or hidden)."""
+    h, w = depth1.shape
+
+    def rays(cam):
+        inv = np.linalg.inv(cam.projection.astype(np.float64))
+        ys, xs = np.mgrid[0:h, 0:w]
+        ndc = np.stack([(xs + 0.5) / w * 2 - 1, (ys + 0.5) / h * 2 - 1, np.ones_like(xs, float), np.ones_like(xs, float)], -1)
+        v = ndc @ inv.T
+        d = v[..., :3] / v[..., 3:4]
+        d = d / np.linalg.norm(d, axis=-1, keepdims=True)
+        return d @ cam.matrix_world[:3, :3].astype(np.float64).T
+
+    c1 = sd1.camera
+    d = rays(c1)
+    fwd = c1.forward.astype(np.float64)
+    P = c1.position.astype(np.float64) + d * (depth1 / np.maximum(d @ fwd, 1e-6))[..., None]
+    c0 = sd0.camera
+    clip = np.concatenate([P, np.ones((h, w, 1))], -1) @ (c0.projection.astype(np.float64) @ c0.view.astype(np.float64)).T
+    uv = (clip[..., :2] / clip[..., 3:4] * 0.5 + 0.5) * np.array([w, h])
+    ix, iy = np.floor(uv[..., 0]).astype(int), np.floor(uv[..., 1]).astype(int)
+    inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h) & (clip[..., 3] > 0)
+    d0 = np.full((h, w), np.inf)
+    d0[inside] = depth0[iy[inside], ix[inside]]
+    dz = (P - c0.position.astype(np.float64)) @ c0.forward.astype(np.float64)
+    hidden = np.abs(d0 - dz) > 0.03 * np.maximum(dz, 1e-3)
+    return (~inside | hidden) & (depth1 < 1e9)
+
+
+@pytest.mark.parametrize("tech", ["SVGF", "TAA"])
+def test_moving_camera_no_ghosting(tech):
+    sc, sd0 = build("cornell")
+    n_move, n_after, step = 8, 8, 0.06
+    try:
+        poses, refs, sds = [], [], []
+        sd = sd0
+        for i in range(n_move + 1):
+            if i > 0:
+                sd, _ = pan(sc, sd, step)
+            sds.append(sd)
+            refs.append(get_reference(sc, "full", REF_SPP).image[..., :3])
+        ours, errs = [], []
+        sess = "mv_" + tech
+        for i in range(n_move + 1 + n_after):
+            k = min(i, n_move)
+            r = session.render(sds[k], tech, 1, 1, keep_history=True, warmup=False, session=sess)
+            ours.append(r.image[..., :3])
+            errs.append(relmse(r.image, refs[k]))
+            if i == 0:
+                depth0 = r.aovs["Depth"][..., 0]
+            depth_end = r.aovs["Depth"][..., 0]
+        release(sess)
+        still = frames(sds[-1], tech, n_after + 1, "st_" + tech)
+        release("st_" + tech)
+        mask = _disoccluded(sds[0], sds[-1], depth0, depth_end)
+        assert mask.sum() >= 20, "the pan must disocclude something"
+        e_moving = float(relmse_map(ours[-1], refs[-1])[mask].mean())
+        e_still = float(relmse_map(still[-1], refs[-1])[mask].mean())
+        stab_ours = float(np.mean([np.abs(ours[i + 1] - ours[i]).mean() for i in range(n_move)]))
+        stab_cy = float(np.mean([np.abs(refs[i + 1] - refs[i]).mean() for i in range(n_move)]))
+        save_png(ours[n_move], f"moving_{tech}_stop.png")
+        save_png(ours[-1], f"moving_{tech}_stop+{n_after}.png")
+        print(f"{tech}: relMSE per frame {', '.join(f'{e:.3f}' for e in errs)}; disoccluded ({int(mask.sum())} px) "
+              f"{n_after} frames after the stop {e_moving:.4f} vs still camera {e_still:.4f}; "
+              f"stability ours {stab_ours:.4f} vs Cycles {stab_cy:.4f} ({stab_ours / stab_cy:.2f}x)")
+        assert all(np.isfinite(o).all() for o in ours)
+        assert e_moving <= 1.5 * e_still + 1e-3, f"ghosting: disoccluded error {e_moving:.4f} vs still {e_still:.4f}"
+        if tech == "SVGF":
+            assert stab_ours <= 2.0 * stab_cy, f"temporal stability {stab_ours:.4f} > 2x Cycles' {stab_cy:.4f}"
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+# ---------------------------------------------------------------- stability
+def _history_names(sess_name):
+    def get():
+        s = session._sessions[sess_name]
+        names = []
+        for _tech, g in s.graphs.values():
+            for p in g.passes:
+                names += [h for h in p.history] + [h + "@prev" for h in p.history]
+        return names
+    return get_gl().call(get)
+
+
+def _poison(sess_name, names):
+    def go():
+        s = session._sessions[sess_name]
+        for n in names:
+            tex = s.rc.resources[n]
+            w, h = tex.size
+            arr = np.full((h, w, tex.components), np.nan, np.float32)
+            tex.write(arr.tobytes())
+        s.ctx.finish()
+    get_gl().call(go)
+
+
+def _finite(sess_name, names):
+    def go():
+        s = session._sessions[sess_name]
+        s.ctx.memory_barrier()
+        return {n: bool(np.isfinite(np.frombuffer(s.rc.resources[n].read(), np.float32)).all()) for n in names}
+    return get_gl().call(go)
+
+
+@pytest.mark.parametrize("tech", ["SVGF", "TAA"])
+def test_nan_in_history_gone_within_one_frame(tech):
+    sc, sd = build("cornell", 24)
+    sess = "nan_" + tech
+    try:
+        frames(sd, tech, 3, sess)
+        names = _history_names(sess)
+        assert names, f"{tech} keeps history"
+        _poison(sess, names)
+        img = frames(sd, tech, 1, sess)[-1]
+        assert np.isfinite(img).all(), f"{tech}: {int((~np.isfinite(img)).sum())} non-finite values after NaN history"
+        cur = [n for n in names if not n.endswith("@prev")]
+        bad = [n for n, ok in _finite(sess, cur).items() if not ok]
+        assert not bad, f"{tech}: history still holds NaN after one frame: {bad}"
+    finally:
+        release(sess)
+        bpy.data.scenes.remove(sc)
+
+
+def test_200_frame_animation_finite_and_bounded():
+    sc, sd = build("cornell", 16)
+    try:
+        b = float(max([np.max(m.emission) for m in sd.materials] + [1.0] +
+                      [float(np.max(L.color)) * 1e4 for L in sd.lights])) * 100.0
+        cam0 = sd.camera.matrix_world.copy()
+        for tech in ("SVGF", "TAA", "ATROUS"):
+            sess = "anim_" + tech
+            for f in range(200 if tech != "ATROUS" else 40):
+                m = cam0.copy()
+                m[:3, 3] += np.asarray(cam0[:3, 0]) * 0.3 * math.sin(f * 0.2)
+                sdf = dataclasses.replace(sd, camera=dataclasses.replace(sd.camera, matrix_world=m))
+                img = session.render(sdf, tech, 1, 1, keep_history=True, warmup=False, session=sess).image[..., :3]
+                assert np.isfinite(img).all(), f"{tech} frame {f}: non-finite"
+                assert img.min() >= 0.0 and img.max() <= b, f"{tech} frame {f}: {img.min()}..{img.max()} beyond [0, {b}]"
+            release(sess)
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+# ---------------------------------------------------------------- options
+def test_denoiser_options_end_any_graph():
+    sc, sd = build("cornell", 16)
+    try:
+        r = session.render(sd, "PT", 0, 2, denoiser="SVGF", use_taa=True, session="opt")
+        assert r.pass_order[0] == "gbuffer" and r.pass_order[-2:] == ["svgf", "taa"], r.pass_order
+        assert np.isfinite(r.image).all()
+        r = session.render(sd, "DIRECT", 0, 1, denoiser="ATROUS", session="opt")
+        assert "atrous" in r.pass_order and r.pass_order.count("gbuffer") == 1
+        with pytest.raises(ValueError, match="unknown GI Preview denoiser 'BLUR'"):
+            session.render(sd, "PT", 0, 1, denoiser="BLUR", session="opt")
+        # the scene properties exist and default to off
+        assert sc.gi_preview.denoiser == "NONE" and sc.gi_preview.use_taa is False
+    finally:
+        release("opt")
+        bpy.data.scenes.remove(sc)

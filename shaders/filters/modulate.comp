@@ -1,0 +1,26 @@
+// modulate.comp — end of ATROUS/SVGF: colour = filtered illumination x demodulation albedo
+// (background pixels carry the colour itself). Optionally the input of the filter is
+// demodulated here instead (MODE_DEMOD): u_in = colour -> o_out = illumination, a = 0.
+#include "lib/common.glsl"
+#include "lib/screen.glsl"
+#include "filters/common.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(binding = 0, rgba32f) uniform writeonly image2D o_out;
+uniform sampler2D u_in;
+uniform sampler2D u_gb_albedo;
+uniform sampler2D u_gb_position;
+uniform int u_demod;
+
+void main() {
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 size = textureSize(u_in, 0);
+    if (any(greaterThanEqual(px, size))) return;
+    vec4 s = texelFetch(u_in, px, 0);
+    vec3 c = sanitize(s.rgb);
+    if (texelFetch(u_gb_position, px, 0).w >= 0.0) {
+        vec3 a = demod_albedo(texelFetch(u_gb_albedo, px, 0).rgb);
+        c = u_demod == 1 ? c / a : c * a;
+    }
+    imageStore(o_out, px, vec4(c, u_demod == 1 ? 0.0 : 1.0));
+}

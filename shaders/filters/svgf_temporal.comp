@@ -1,0 +1,116 @@
+// svgf_temporal.comp — SVGF's temporal stage (Schied et al. 2017, §4.1–4.2).
+// Demodulates the noisy colour by the G-buffer albedo, reprojects last frame's filtered
+// illumination (the first à-trous iteration, fed back) and moments through gbuffer.motion
+// (bilinear 2x2, each tap kept only if its surface lies on this pixel's plane, has a similar
+// normal and projects near this pixel), integrates with an exponential moving average
+// alpha = max(1/len, 1/u_max_history), and estimates the luminance variance from the
+// temporal moments, or spatially (7x7, edge-stopped) while the history is shorter than 4;
+// the variance handed to the à-trous is that of the integrated signal (samples' / len).
+// History taps that are not finite are rejected, so NaN in history is gone within a frame.
+#include "lib/common.glsl"
+#include "lib/screen.glsl"
+#include "filters/common.glsl"
+
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(binding = 0, rgba32f) uniform writeonly image2D o_illum;    // rgb illumination, a variance
+layout(binding = 1, rgba32f) uniform writeonly image2D o_moments;  // m1, m2, history length
+layout(binding = 2, rgba32f) uniform writeonly image2D o_pos;      // xyz, w = 1 surface
+layout(binding = 3, rgba32f) uniform writeonly image2D o_nrm;
+
+uniform sampler2D u_color;
+uniform sampler2D u_gb_albedo;
+uniform sampler2D u_gb_position;
+uniform sampler2D u_gb_normal;
+uniform sampler2D u_gb_motion;
+uniform sampler2D u_hist_illum;
+uniform sampler2D u_hist_moments;
+uniform sampler2D u_hist_pos;
+uniform sampler2D u_hist_nrm;
+uniform int u_reset;
+uniform float u_max_history;
+
+vec3 cur_illum(ivec2 q) {
+    vec3 c = sanitize(texelFetch(u_color, q, 0).rgb);
+    return c / demod_albedo(texelFetch(u_gb_albedo, q, 0).rgb);
+}
+
+void main() {
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 size = ivec2(u_resolution);
+    if (any(greaterThanEqual(px, size))) return;
+    vec4 pos = texelFetch(u_gb_position, px, 0);
+    if (pos.w < 0.0) {  // background: passed through unfiltered
+        imageStore(o_illum, px, vec4(sanitize(texelFetch(u_color, px, 0).rgb), 0.0));
+        imageStore(o_moments, px, vec4(0.0));
+        imageStore(o_pos, px, vec4(0.0));
+        imageStore(o_nrm, px, vec4(0.0));
+        return;
+    }
+    vec3 P = pos.xyz;
+    vec3 N = normalize(texelFetch(u_gb_normal, px, 0).xyz + vec3(0.0, 0.0, 1e-12));
+    vec3 c = cur_illum(px);
+    float l = luminance(c);
+    vec2 mom = vec2(l, l * l);
+
+    vec3 hc = vec3(0.0);
+    vec2 hm = vec2(0.0);
+    float hlen = 0.0, wsum = 0.0;
+    if (u_reset == 0) {
+        vec2 prev = vec2(px) + 0.5 - texelFetch(u_gb_motion, px, 0).xy - 0.5;
+        ivec2 b = ivec2(floor(prev));
+        vec2 f = prev - vec2(b);
+        for (int j = 0; j < 2; ++j)
+            for (int i = 0; i < 2; ++i) {
+                ivec2 t = b + ivec2(i, j);
+                if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, size))) continue;
+                vec4 hp = texelFetch(u_hist_pos, t, 0);
+                vec4 hn = texelFetch(u_hist_nrm, t, 0);
+                vec4 hi = texelFetch(u_hist_illum, t, 0);
+                vec4 hmo = texelFetch(u_hist_moments, t, 0);
+                if (!(finite4(hp) && finite4(hn) && finite4(hi) && finite4(hmo))) continue;
+                if (hp.w <= 0.0 || hmo.z <= 0.0) continue;
+                vec2 tp = to_pixel(hp.xyz) - (vec2(px) + 0.5);
+                if (plane_pixels(P, N, hp.xyz) > 2.0 || dot(tp, tp) > 2.25 || dot(hn.xyz, N) < 0.9) continue;
+                float w = (i == 0 ? 1.0 - f.x : f.x) * (j == 0 ? 1.0 - f.y : f.y);
+                hc += w * max(hi.rgb, vec3(0.0));
+                hm += w * max(hmo.xy, vec2(0.0));
+                hlen += w * hmo.z;
+                wsum += w;
+            }
+    }
+    float len = 1.0;
+    if (wsum > 0.01) {
+        hc /= wsum;
+        hm /= wsum;
+        hlen /= wsum;
+        len = min(hlen + 1.0, max(u_max_history, 1.0));
+        float a = 1.0 / len;
+        c = mix(hc, c, a);
+        mom = mix(hm, mom, a);
+    }
+    float var = max(mom.y - mom.x * mom.x, 0.0);
+    if (len < 4.0) {  // too little history: spatial estimate of the moments (7x7, edge-stopped)
+        vec2 sm = vec2(0.0);
+        float sw = 0.0;
+        for (int dy = -3; dy <= 3; ++dy)
+            for (int dx = -3; dx <= 3; ++dx) {
+                ivec2 q = px + ivec2(dx, dy);
+                if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
+                vec4 pq = texelFetch(u_gb_position, q, 0);
+                if (pq.w < 0.0) continue;
+                vec3 nq = texelFetch(u_gb_normal, q, 0).xyz;
+                float w = pow(max(dot(N, nq), 0.0), 32.0) * exp(-plane_pixels(P, N, pq.xyz) / (1.0 + length(vec2(dx, dy))));
+                float lq = luminance(cur_illum(q));
+                sm += w * vec2(lq, lq * lq);
+                sw += w;
+            }
+        sm /= max(sw, 1e-6);
+        var = max(sm.y - sm.x * sm.x, 0.0);
+    }
+    // the integrated signal averages ~len samples: its variance is the samples' over len
+    var /= len;
+    imageStore(o_illum, px, vec4(sanitize(c), isnan(var) || isinf(var) ? 0.0 : var));
+    imageStore(o_moments, px, vec4(mom, len, 0.0));
+    imageStore(o_pos, px, vec4(P, 1.0));
+    imageStore(o_nrm, px, vec4(N, 0.0));
+}
