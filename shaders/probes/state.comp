@@ -1,0 +1,67 @@
+// state.comp — probe state: relocation offset (xyz, world units) and classification (w: 0
+// active, 1 inactive). One invocation per probe slot.
+// Without PROBE_RELOCATE / PROBE_CLASSIFY (IRRADIANCE_VOLUME, DDGI): every probe active, on
+// its lattice point.
+// PROBE_RELOCATE (RTXGI, Majercik et al. 2021): from this frame's fixed rays (traced from the
+//   current position): more than u_backface_ratio of them hitting back faces means the probe is
+//   inside geometry -> move it just past the closest back face; otherwise a front face closer
+//   than u_min_frontface -> move away from it. Offsets never exceed u_max_offset (0.45) of a
+//   cell per axis.
+// PROBE_CLASSIFY (RTXGI): inactive when inside geometry (back-face ratio), or when no fixed ray
+//   hits a surface within the probe's own cell (empty space: no receiver interpolates from it).
+//   An inactive probe still traces its fixed rays, so it is reactivated when that changes.
+// A slot that scrolled in (camera-following volume) or a reset starts on its lattice point.
+#include "lib/common.glsl"
+#include "probes/common.glsl"
+
+layout(local_size_x = 64) in;
+layout(binding = 0, rgba32f) uniform writeonly image2D o_state;
+uniform sampler2D u_ray_tex;
+uniform sampler2D u_prev_state;
+uniform float u_backface_ratio;
+uniform float u_min_frontface;   // world units
+uniform float u_max_offset;      // fraction of a cell
+uniform int u_reset;
+
+void main() {
+    int pi = int(gl_GlobalInvocationID.x);
+    if (pi >= probe_count()) return;
+    ivec3 s = slot_from_index(pi);
+    vec4 st = (u_reset != 0 || slot_is_new(s)) ? vec4(0.0) : texelFetch(u_prev_state, slot_tile(s), 0);
+#if defined(PROBE_RELOCATE) || defined(PROBE_CLASSIFY)
+    int nf = u_fixed_rays;
+    int back = 0;
+    float close_back = 1e30, close_front = 1e30;
+    vec3 dir_back = vec3(0.0), dir_front = vec3(0.0);
+    bool near_surface = false;
+    for (int r = 0; r < nf; ++r) {
+        float t = texelFetch(u_ray_tex, ivec2(r, pi), 0).a;
+        vec3 d = probe_ray_dir(r);
+        if (t < 0.0) {
+            back++;
+            if (-t < close_back) { close_back = -t; dir_back = d; }
+        } else if (t < close_front) {
+            close_front = t; dir_front = d;
+        }
+        float at = abs(t);
+        if (at < 1e26 && all(lessThanEqual(abs(d * at), u_probe_spacing))) near_surface = true;
+    }
+    bool inside = float(back) > u_backface_ratio * float(max(nf, 1));
+    vec3 off = st.xyz;
+#ifdef PROBE_RELOCATE
+    if (inside) {
+        off += dir_back * (close_back + 0.5 * u_min_frontface);
+    } else if (close_front < u_min_frontface) {
+        off -= dir_front * (u_min_frontface - close_front);
+    }
+    off = clamp(off, -u_max_offset * u_probe_spacing, u_max_offset * u_probe_spacing);
+#endif
+    float state = 0.0;
+#ifdef PROBE_CLASSIFY
+    if (inside || !near_surface) state = 1.0;
+#endif
+    imageStore(o_state, slot_tile(s), vec4(off, state));
+#else
+    imageStore(o_state, slot_tile(s), vec4(0.0));
+#endif
+}
