@@ -43,8 +43,10 @@ void main() {
     Surface s = make_surface(m, material_base_color(u_textures, m, v_uv));
     vec3 rho = diffuse_albedo(s, max(NoL, 1e-4));
     vec3 flux;
+    float area;  // the texel's surface area (the LPV geometry volume's blockers)
     if (u_ortho == 1) {
         flux = rho * L.color.rgb * (u_texel * u_texel);
+        area = u_texel * u_texel / max(NoL, 0.05);
     } else {
         vec3 w = normalize(v_world - u_origin);
         float ca = max(dot(w, u_fwd), 1e-4);
@@ -53,8 +55,10 @@ void main() {
         if (type == LIGHT_SPOT) I *= spot_attenuation(L, w);
         if (type == LIGHT_AREA) I = L.color.rgb * L.axis_v.w * max(dot(w, L.dir_radius.xyz), 0.0);
         flux = rho * I * domega;
+        vec3 dv = v_world - u_origin;
+        area = domega * dot(dv, dv) / max(NoL, 0.05);
     }
     o_pos = vec4(v_world, 1.0);
-    o_nrm = vec4(n, 0.0);
+    o_nrm = vec4(n, area);
     o_flux = vec4(sanitize(flux), 1.0);
 }
