@@ -130,6 +130,33 @@ def test_animation_three_frames(tmp_path):
         bpy.data.scenes.remove(sc)
 
 
+def test_animation_warms_up_only_its_first_frame(tmp_path):
+    """A technique with converging state (DDGI's probes) warms up on the animation's first
+    frame (a camera cut) and carries its state into the next frames instead of restarting."""
+    sc = build_demo("cornell", resolution=24)
+    seen = []
+
+    def record(scene, *_):
+        seen.append(dict(engine_mod.last_render))
+
+    try:
+        sc.gi_preview.technique = "DDGI"
+        sc.gi_preview.quality = 0
+        sc.gi_preview.samples = 1
+        sc.frame_start, sc.frame_end = 1, 3
+        sc.render.filepath = str(tmp_path / "warm_")
+        bpy.app.handlers.render_post.append(record)
+        bpy.ops.render.render(animation=True, scene=sc.name)
+    finally:
+        if record in bpy.app.handlers.render_post:
+            bpy.app.handlers.render_post.remove(record)
+        bpy.data.scenes.remove(sc)
+    assert [r["frame"] for r in seen] == [1, 2, 3]
+    assert seen[0]["warmup_frames"] > 0
+    assert [r["warmup_frames"] for r in seen[1:]] == [0, 0]
+    assert all(not any(p.startswith("probe") for p in r["history_resets"]) for r in seen[1:]), seen
+
+
 def _new_scene(name, with_camera=True, res=32):
     sc = bpy.data.scenes.new(name)
     sc.render.engine = "GI_PREVIEW"

@@ -108,9 +108,13 @@ def final_render(engine, depsgraph):
     export_ms = (time.perf_counter() - t0) * 1e3
     engine.update_stats("", f"GI Preview: rendering {technique} ({samples} samples)")
     try:
+        # an animation keeps temporal state from frame to frame; its first frame starts from a
+        # camera cut and warms the technique's state up, as a still F12 render does
+        first = not engine.is_animation or scene.frame_current == scene.frame_start
         res = session.render(data, technique, quality, samples, progress=engine.update_progress,
                              cancel=engine.test_break, keep_history=bool(engine.is_animation),
-                             session="final", **_filter_options(scene))
+                             session="final", camera_cut=True if first else None, warmup=first,
+                             **_filter_options(scene))
     except session.Cancelled:
         return
     except (GLUnavailableError, SceneError, ShaderError, ValueError) as exc:
@@ -140,6 +144,8 @@ def final_render(engine, depsgraph):
         "pass_ms": {k: round(v, 3) for k, v in res.pass_ms.items()}, "effects": res.effects,
         "skipped_passes": [s.as_dict() for s in res.skipped_passes], "warnings": res.warnings,
         "cancelled": res.cancelled, "frame": data.frame, "scene": scene.name,
+        "setup_ms": round(res.setup_ms, 3), "warmup_frames": res.warmup_frames,
+        "history_resets": list(res.history_resets),
         "passes": written, "available_passes": [p.name for p in layer.passes],
     }
     try:
