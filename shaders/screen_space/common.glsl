@@ -39,13 +39,33 @@ Surface fetch_surface(ivec2 px, int mid) {
     return make_surface(materials[mid], texelFetch(u_gb_albedo, px, 0).rgb);
 }
 
+// How far a pixel's radiance toward the camera (aov.direct) stands for its radiance in
+// the direction Vr (towards a receiver: SSR's reflecting pixel, SSDO's receiver). Its diffuse share is the same in every direction;
+// its glossy share only within the glossy lobe's width (about 2 alpha around the camera
+// direction). A metal seen in a mirror from another side shows other highlights than the
+// camera sees: its radiance is not known on screen, so that share falls back (the composite
+// keeps DIRECT's world reflection for it) instead of copying the camera's highlights to
+// the wrong place.
+float view_trust(GPixel h, ivec2 hp, vec3 Vr) {
+    Surface sh = fetch_surface(hp, h.mid);
+    vec3 Vc = view_dir(h.P);
+    float NoVc = max(dot(h.N, Vc), 1e-4);
+    float kd = luminance(diffuse_albedo(sh, NoVc));
+    float ks = luminance(specular_albedo(sh, NoVc));
+    float fd = kd / max(kd + ks, 1e-6);
+    float sigma = 2.0 * sh.alpha + 0.02;
+    float ang = acos(clamp(dot(Vc, Vr), -1.0, 1.0));
+    return fd + (1.0 - fd) * exp(-0.5 * ang * ang / (sigma * sigma));
+}
+
 #endif
 
 // Far field: does direction dir from O, already open within the radius r, still see the
 // world further out? A coarse march of u_far_points points spaced geometrically from r to
 // u_far_distance; a point behind the visible surface by less than the spacing (the
-// assumed thickness) is blocked there. Returns the blocking pixel (or ivec2(-1): open).
-// Points leaving the screen stop the march: open (screen space knows nothing beyond).
+// assumed thickness) is blocked there. Returns the blocking pixel, ivec2(-1) (open: every
+// point stayed on screen in front of the surfaces) or ivec2(-2) (unknown: the march left
+// the screen, where screen space knows nothing).
 uniform float u_far_distance;
 uniform int u_far_points;
 
@@ -58,7 +78,7 @@ ivec2 far_blocker(vec3 O, vec3 dir, float r, float jitter) {
         float t = r * pow(ratio, (float(j) + jitter) / float(m));
         vec3 S = O + dir * t;
         vec2 sp = to_pixel(S);
-        if (!on_screen(sp)) break;
+        if (!on_screen(sp)) return ivec2(-2);
         ivec2 hp = ivec2(sp);
         vec4 hpos = texelFetch(u_gb_position, hp, 0);
         if (hpos.w >= 0.0) {
@@ -68,6 +88,23 @@ ivec2 far_blocker(vec3 O, vec3 dir, float r, float jitter) {
         prev_t = t;
     }
     return ivec2(-1);
+}
+
+// GGX terms in a form that does not overflow for near-mirrors. lib/brdf.glsl's ggx_D
+// computes 1 + NoH^2 (a2 - 1), which in fp32 cancels to 0 when a2 < 6e-8 (roughness < 0.016)
+// and NoH = 1; the denominator here is sin^2 + cos^2 a2 with sin^2 = |N x H|^2, exact for
+// small angles, so D <= 1 / (PI a2) and a VNDF pdf stays finite (<= ~1e11 at a2 = 1e-8).
+float ss_ggx_D(vec3 N, vec3 H, float a2) {
+    vec3 c = cross(N, H);
+    float NoH = dot(N, H);
+    float d = dot(c, c) + NoH * NoH * a2;
+    return a2 / (PI * max(d * d, 1e-30));
+}
+
+// pdf (solid angle, of L) of GGX visible-normal sampling: G1(V) D(H) / (4 NoV).
+float ss_vndf_pdf(vec3 N, vec3 V, vec3 H, float a2) {
+    float NoV = max(dot(N, V), 1e-4);
+    return ggx_G1(NoV, a2) * ss_ggx_D(N, H, a2) / (4.0 * NoV);
 }
 
 // Per-pixel, per-frame random numbers (the rotation of the kernels).

@@ -45,7 +45,7 @@ void main() {
     float rot = TWO_PI * rnd.x;
     float cr = cos(rot), sr = sin(rot);
     vec3 bounce = vec3(0.0);
-    float open = 0.0;
+    float open = 0.0, unknown = 0.0;
     int n = max(u_samples, 1);
     for (int i = 0; i < n; ++i) {
         float u1 = (float(i) + rnd.y) / float(n);
@@ -56,7 +56,7 @@ void main() {
         float s = fract(float(i) * 0.618034 + rnd.z);
         vec3 S = O + dir * (u_radius * mix(0.1, 1.0, s));
         vec2 sp = to_pixel(S);
-        if (!on_screen(sp)) { open += 1.0; continue; }   // unknown to screen space: open
+        if (!on_screen(sp)) { open += 1.0; unknown += 1.0; continue; }   // unknown to screen space
         ivec2 hp = ivec2(sp);
         GPixel h = fetch_g(hp);
         if (!h.valid) { open += 1.0; continue; }
@@ -65,19 +65,26 @@ void main() {
         if (dh < ds - u_bias && abs(d0 - dh) < u_radius) {
             // blocked: the hiding pixel sends its direct-lit radiance if it faces P
             vec3 toP = g.P - h.P;
-            float facing = dot(h.N, toP) > 0.0 ? 1.0 : 0.0;
-            bounce += facing * texelFetch(u_radiance, hp, 0).rgb;
+            if (dot(h.N, toP) > 0.0)
+                bounce += texelFetch(u_radiance, hp, 0).rgb * view_trust(h, hp, normalize(toP));
         } else {
             // open within the radius: march further (far field); a surface met there is
             // the sender, otherwise the direction stays open
             ivec2 fp = far_blocker(O, dir, u_radius, fract(s + 0.5));
-            if (fp.x < 0) {
+            if (fp.x == -2) {
+                open += 1.0;
+                unknown += 1.0;
+            } else if (fp.x < 0) {
                 open += 1.0;
             } else {
                 GPixel f = fetch_g(fp);
-                bounce += (dot(f.N, g.P - f.P) > 0.0 ? 1.0 : 0.0) * texelFetch(u_radiance, fp, 0).rgb;
+                vec3 toP = g.P - f.P;
+                if (dot(f.N, toP) > 0.0)
+                    bounce += texelFetch(u_radiance, fp, 0).rgb * view_trust(f, fp, normalize(toP));
             }
         }
     }
-    imageStore(o_ssdo, q, vec4(sanitize(bounce / float(n)), open / float(n)));
+    // the bounce is the mean over the directions whose outcome screen space knows; the
+    // unknown ones (off screen) are assumed to look like those (not open, not black)
+    imageStore(o_ssdo, q, vec4(sanitize(bounce / max(float(n) - unknown, 1.0)), open / float(n)));
 }

@@ -1,17 +1,26 @@
 // ssr_resolve.comp — SSR resolve: importance-sampled rays shared between neighbours.
 // Paper: Stachowiak 2015 ("Stochastic screen-space reflections", the ratio estimator).
 // Each full-resolution pixel reuses the rays of u_resolve_samples neighbouring (scaled)
-// pixels, its own included, within a radius that grows with roughness: a neighbour's hit
-// point seen from this pixel gives a direction L, weighted by this pixel's glossy BSDF
-// times cosine divided by the pdf the neighbour drew its ray with; missed rays use the
-// neighbour's direction and the fallback (the uniform world radiance). The weighted mean of
-// the incident radiance is the demodulated reflection; the composite multiplies it by the
-// specular albedo and subtracts DIRECT's world glossy term, which it replaces. Radiance at
-// hits is aov.direct (reflected direct light; the emission of hit emitters is already in
-// DIRECT's glossy term), so this is one bounce.
-// Output: rgb = demodulated specular incident radiance, a = 1 where SSR replaces DIRECT's
-// world reflection; 0 (rgb 0) where there is no glossy lobe or the surface is rougher than
-// u_max_roughness (DIRECT's shadowed world reflection is kept there).
+// pixels, its own included, within a radius that grows with roughness. A neighbour's ray
+// is weighted by this pixel's glossy BSDF x cosine in the direction of the neighbour's hit
+// divided by the pdf the neighbour drew it with, w = D(H) G2 / (4 NoV pdf) (the Fresnel
+// term and the specular albedo are left out: they vary little over the lobe and the
+// composite multiplies by the specular albedo). This pixel's own ray uses its own sampled
+// direction, whose weight has the closed form G2 / G1(V) (D and the pdf cancel), so a
+// near-mirror degenerates gracefully to its own ray with the right weight: a neighbour's
+// direction lies outside a mirror's lobe (D ~ 0) and drops out. D is evaluated in a form
+// that does not overflow (ss_ggx_D, common.glsl). (Before: a mirror's pdf overflowed to
+// inf, every weight was 0 or NaN, and the pixel fell back to its own ray unweighted.)
+// Hits carry the hit pixel's reflected direct light aov.direct (one bounce; the emission
+// of hit emitters is already in DIRECT's glossy term) times their confidence (edge and
+// distance fades). Misses (the ray left the screen, went behind everything or too far)
+// carry nothing here: the fallback for the missing share is DIRECT's own world reflection,
+// shadowed by its world-light maps (aov.world_spec), which the composite keeps in
+// proportion 1 - a. So a ray fading out at the screen edge blends into the world
+// reflection without a seam, and a miss indoors is not lit by the unshadowed sky.
+// Output: rgb = sum(w conf L_hit) / sum(w) (demodulated incident radiance of the hits),
+// a = sum(w conf) / sum(w) (the share of the lobe found on screen); both 0 where there is
+// no glossy lobe or the surface is rougher than u_max_roughness (DIRECT's term stays).
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/rng.glsl"
@@ -46,9 +55,9 @@ void main() {
     ivec2 qc = min(ivec2((vec2(px) + 0.5) * scale), rsize - 1);
     vec4 rnd = pixel_noise(px, 22u);
     float radius = 1.0 + 3.0 * s.roughness;
+    float a2 = s.alpha * s.alpha;
     vec3 sum = vec3(0.0);
-    float wsum = 0.0;
-    vec3 own = u_world;
+    float cover = 0.0, wsum = 0.0;
     int n = max(u_resolve_samples, 1);
     for (int k = 0; k < n; ++k) {
         ivec2 qq = qc;
@@ -56,25 +65,38 @@ void main() {
             float a = TWO_PI * (float(k) * 0.618034 + rnd.x);
             float r = radius * sqrt((float(k) - 0.5 + rnd.y) / float(n));
             qq = clamp(qc + ivec2(round(r * vec2(cos(a), sin(a)))), ivec2(0), rsize - 1);
+            if (qq == qc) continue;   // the own ray is sample 0
         }
         vec4 r0 = texelFetch(u_ray0, qq, 0);
         if (!(r0.w > 0.0)) continue;
         vec4 r1 = texelFetch(u_ray1, qq, 0);
         vec3 L = r0.xyz;
-        vec3 Li = u_world;
-        if (r1.z > 0.0) {
+        bool found = r1.z > 0.0;
+        vec3 Lhit = vec3(0.0);
+        float conf = 0.0;
+        if (found) {
             ivec2 hp = ivec2(r1.xy);
-            vec3 Ph = texelFetch(u_gb_position, hp, 0).xyz;
-            vec3 d = Ph - g.P;
-            if (dot(d, d) > 1e-10) L = normalize(d);
-            Li = mix(u_world, texelFetch(u_radiance, hp, 0).rgb, clamp(r1.z, 0.0, 1.0));
+            GPixel h = fetch_g(hp);
+            vec3 d = h.P - g.P;
+            if (k > 0 && dot(d, d) > 1e-10) L = normalize(d);
+            Lhit = texelFetch(u_radiance, hp, 0).rgb;
+            conf = clamp(r1.z, 0.0, 1.0) * view_trust(h, hp, -L);
         }
-        if (k == 0) own = Li;
-        float w = luminance(eval_principled(s, N, V, L).glossy) / r0.w;
+        float NoL = dot(N, L);
+        if (NoL <= 0.0) continue;
+        float G2 = ggx_V(NoV, NoL, a2) * 4.0 * NoV * NoL;
+        float w;
+        if (k == 0) {
+            w = G2 / ggx_G1(NoV, a2);                       // own ray: f cos / pdf in closed form
+        } else {
+            w = ss_ggx_D(N, normalize(V + L), a2) * G2 / (4.0 * NoV * r0.w);
+        }
         if (!(w > 0.0) || isinf(w)) continue;
-        sum += w * Li;
+        sum += w * conf * Lhit;
+        cover += w * conf;
         wsum += w;
     }
-    vec3 res = wsum > 0.0 ? sum / wsum : own;
-    imageStore(o_spec, px, vec4(sanitize(res), 1.0));
+    vec3 res = wsum > 0.0 ? sum / wsum : vec3(0.0);
+    float a = wsum > 0.0 ? clamp(cover / wsum, 0.0, 1.0) : 0.0;
+    imageStore(o_spec, px, vec4(sanitize(res), a));
 }

@@ -6,11 +6,21 @@
 // (lib/brdf.glsl), the ray is projected to a screen-space segment whose device depth is
 // linear in the segment parameter, and marched on the Hi-Z min pyramid: a cell the ray
 // passes entirely in front of is skipped and the level goes up; otherwise the level goes
-// down; at level 0 the ray hits when it is behind the surface by less than u_thickness
-// (linear depth, world units), else it steps past the pixel (it went behind a thin object).
-// Rays that leave the screen miss; hits fade out near the screen edges.
-// Outputs: ray0 = (direction xyz, pdf; pdf 0 = no ray), ray1 = (hit pixel xy, confidence,
-// hit distance). The resolve pass (ssr_resolve.comp) turns them into reflected radiance.
+// down. At level 0 the pixel's surface is taken as its plane (G-buffer position and
+// geometric normal), not as one depth: the ray hits when it crosses that plane inside the
+// pixel from the front, or when it entered the pixel already behind the plane by at most
+// u_thickness (measured along the normal, so a wall seen at a grazing angle, whose depth
+// changes by more than the thickness from one pixel to the next, still stops the ray).
+// A ray behind the plane by more passes behind the object and continues; a ray still in
+// front (the pixel's centre depth is nearer than its plane where the ray is) continues.
+// (Before: one depth per pixel compared with the ray's depth within u_thickness in view
+// depth, so grazing walls and floors were crossed between two samples and their
+// reflections broke into speckles; and a back-face hit ended the ray as a miss.)
+// Rays that leave the screen or reach u_max_distance miss; the resolve falls back to
+// DIRECT's shadowed world reflection for them, and hits fade out near the screen edges.
+// Outputs: ray0 = (direction xyz, pdf; pdf 0 = no ray; the pdf is computed in a form that
+// stays finite for mirrors, common.glsl), ray1 = (hit pixel xy, confidence, hit distance).
+// The resolve pass (ssr_resolve.comp) turns them into reflected radiance.
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/rng.glsl"
@@ -33,11 +43,6 @@ uniform float u_edge_fade;    // fraction of the screen
 uniform float u_near;
 uniform float u_bias;
 
-float surface_depth(ivec2 p) {
-    vec4 pos = texelFetch(u_gb_position, p, 0);
-    return pos.w >= 0.0 ? view_depth(pos.xyz) : 1e30;
-}
-
 void main() {
     ivec2 q = ivec2(gl_GlobalInvocationID.xy);
     ivec2 osize = imageSize(o_ray0);
@@ -59,12 +64,12 @@ void main() {
     vec3 Hl = sample_ggx_vndf(Vl, s.alpha, rnd.xy);
     vec3 L = to_world(reflect(-Vl, Hl), N);
     float NoL = dot(N, L);
-    float pdf = ggx_vndf_pdf(NoV, max(Hl.z, 0.0), s.alpha * s.alpha);
+    float pdf = ss_vndf_pdf(N, V, normalize(V + L), s.alpha * s.alpha);
     if (NoL <= 0.0 || dot(g.Ng, L) <= 0.0 || !(pdf > 0.0)) {
         imageStore(o_ray0, q, vec4(L, 0.0));
         return;
     }
-    imageStore(o_ray0, q, vec4(L, min(pdf, FLT_MAX)));  // a near-mirror's pdf overflows: keep it finite
+    imageStore(o_ray0, q, vec4(L, min(pdf, FLT_MAX)));
     // ---- the ray as a screen-space segment
     vec3 O = g.P + g.Ng * u_bias;
     float dO = view_depth(O);
@@ -77,7 +82,6 @@ void main() {
     vec3 s0 = vec3((c0.xy / c0.w * 0.5 + 0.5) * u_resolution, c0.z / c0.w);
     vec3 s1 = vec3((c1.xy / c1.w * 0.5 + 0.5) * u_resolution, c1.z / c1.w);
     float iw0 = 1.0 / c0.w, iw1 = 1.0 / c1.w;
-    float dq0 = dO * iw0, dq1 = view_depth(E) * iw1;
     vec3 D = s1 - s0;
     // clip the segment to the screen
     float t_exit = 1.0;
@@ -96,7 +100,10 @@ void main() {
     ivec2 res0 = ivec2(u_resolution);
     for (int it = 0; it < u_steps && t <= t_exit; ++it) {
         vec2 p = s0.xy + D.xy * t;
-        ivec2 lsize = textureSize(u_hiz, level);
+        // the sizes HiZPass reduced to; textureSize(u_hiz, level) with a varying level
+        // returned wrong sizes on llvmpipe (cells clamped to the last row: whole-screen
+        // skips, the vertical bands of missed reflections)
+        ivec2 lsize = max(res0 >> level, ivec2(1));
         ivec2 cell = min(ivec2(p) >> level, lsize - 1);
         ivec2 lo = cell << level;
         ivec2 hi = ivec2(cell.x == lsize.x - 1 ? res0.x : (cell.x + 1) << level,
@@ -113,21 +120,30 @@ void main() {
             continue;
         }
         if (level > 0) { level -= 1; continue; }
-        // level 0: the ray reaches the surface depth inside this pixel
-        float th = z_in >= zc ? t : clamp((zc - s0.z) / D.z, t, t_out);
-        float ray_d = mix(dq0, dq1, th) / mix(iw0, iw1, th);
-        float surf_d = surface_depth(cell);
-        if (ray_d - surf_d <= u_thickness && ray_d - surf_d >= -u_thickness) {
-            hit = true;
-            hit_pix = vec2(cell) + 0.5;
-            hit_t = th;
-            break;
+        // level 0: the pixel's surface as a plane; where is the ray relative to it?
+        vec4 hp4 = texelFetch(u_gb_position, cell, 0);
+        float t1 = min(t_out, t_exit);
+        if (hp4.w >= 0.0) {
+            vec3 Nc = normalize(texelFetch(u_gb_geonormal, cell, 0).xyz + vec3(0.0, 0.0, 1e-12));
+            if (dot(Nc, view_dir(hp4.xyz)) < 0.0) Nc = -Nc;     // the side the camera sees
+            float sa = dot(Nc, mix(O * iw0, E * iw1, t) / mix(iw0, iw1, t) - hp4.xyz);
+            float sb = dot(Nc, mix(O * iw0, E * iw1, t1) / mix(iw0, iw1, t1) - hp4.xyz);
+            bool entering = dot(Nc, L) < 0.0;                    // towards the visible side
+            if (entering && sb <= 0.0 && sa >= -u_thickness) {
+                // crossed the plane inside this pixel, or entered it less than the
+                // thickness behind (the crossing fell between two samples)
+                hit = true;
+                hit_pix = vec2(cell) + 0.5;
+                hit_t = sa > 0.0 ? mix(t, t1, sa / max(sa - sb, 1e-12)) : t;
+                break;
+            }
         }
-        t = t_out;                               // behind a thin object: step past it
+        t = t_out;   // background, in front of the plane, behind a thin object or its back face
+        level = min(1, max_level);   // and climb again: the next cells may be skipped whole
     }
     if (!hit) return;
     GPixel h = fetch_g(ivec2(hit_pix));
-    if (!h.valid || dot(h.N, L) > 0.2) return;  // background or the back of a surface
+    if (!h.valid) return;
     float conf = edge_fade(hit_pix, u_edge_fade);
     // fade rays that hit near the end of their allowed length
     float dist = length(h.P - O);

@@ -114,10 +114,11 @@ class ScreenPass(Pass):
 
 # ---------------------------------------------------------------- Hi-Z
 class HiZPass(ScreenPass):
-    """Min pyramid of device depth: level 0 from the G-buffer, then 2x2 (3x3 at odd edges)."""
+    """Min pyramid of device depth: level 0 the nearest depth over each pixel's footprint
+    (its G-buffer plane at the pixel corners), then 2x2 (3x3 at odd edges)."""
 
     name = "ss_hiz"
-    reads = (POSITION,)
+    reads = (POSITION, GEONORMAL)
     writes = (HIZ,)
     declared = (Res(HIZ, components=1, dtype="f4", levels=0),)
     history_resets = frozenset()
@@ -132,6 +133,8 @@ class HiZPass(ScreenPass):
         bind_frame(rc, init, frame)
         rc.resources[POSITION].use(1)
         set_uniform(init, "u_gb_position", 1)
+        rc.resources[GEONORMAL].use(2)
+        set_uniform(init, "u_gb_geonormal", 2)
         tex.bind_to_image(1, read=False, write=True, level=0)
         self.run(rc, init)
         red = rc.programs.compute("screen_space/hiz.comp")
