@@ -129,13 +129,19 @@ VERT_BYTES_PER_TRIANGLE = 48  # bvh.glsl: three vec4 corners per triangle (the l
 
 
 def geometry_key(scene) -> str:
-    """Content hash of the meshes (what the BLAS depend on)."""
+    """Content hash of the meshes (what the BLAS depend on). Each mesh's own content hash is
+    computed once and cached on the Mesh object (``_gi_key``, shared with GPUScene): the
+    exporter hands back the same Mesh object while its geometry is unchanged, so moving an
+    object hashes no vertex data."""
+    from .gpu_scene import _mesh_key
+
     h = hashlib.blake2b(digest_size=16)
     for m in scene.meshes:
-        for a in (m.positions, m.normals, m.uvs, m.material_ids):
-            a = np.ascontiguousarray(a)
-            h.update(str(a.shape).encode())
-            h.update(a.tobytes())
+        key = getattr(m, "_gi_key", None)
+        if key is None:
+            key = _mesh_key(m, None)
+            m._gi_key = key
+        h.update(key.encode())
     return h.hexdigest()
 
 
