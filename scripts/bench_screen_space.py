@@ -18,6 +18,13 @@ frame, and time x samples for the accumulated image). Measured:
 * AUTO (DIRECT + SSDO + SSR planned per scene) the same way, with the passes the planner
   skipped and why (``skipped_passes``).
 
+``--repro corridor,bounce_room,mirror_gradient`` instead measures issue 9's reproduction
+scenes (``blender_tests/scenes_screen_space.py``) at ``--res`` (64 in the pages) against
+Cycles "one_bounce": relMSE over the whole image and masked to each named surface (the
+reflective floor and gold wall, the indirectly lit ceiling), and the total variation of
+the reflections (ours vs Cycles'), into ``docs/results/screen_space_repro.json`` and
+``<out>/repro_<scene>_*.png``.
+
 Writes ``<out>/<scene>_<TECH>_q<Q>.png`` (ours), ``<scene>_cycles_<kind>.png``,
 ``<scene>_<TECH>_q<Q>_vs_<kind>_error.png`` (relMSE heat map), the AO images, and
 ``<out>/screen_space_results.json``. The doc pages quote these numbers.
@@ -57,8 +64,16 @@ def main(argv=None):
     p.add_argument("--curve", default="1,2,4,8,16,32,64")
     p.add_argument("--out", default=os.path.join(REPO, "docs", "techniques", "img"))
     p.add_argument("--cache", default=None)
+    p.add_argument("--repro", default="", help="issue 9's reproduction scenes instead of the demo scenes")
+    p.add_argument("--tables", default="", help="print the pages' tables of TECH from <out>/screen_space_results.json")
+    p.add_argument("--before", default="", help="with --tables: an earlier results JSON, shown beside")
     opts = p.parse_args(argv)
+    if opts.tables:
+        print(tables(opts.tables, os.path.join(opts.out, "screen_space_results.json"), opts.before))
+        return None
     _import_pkg()
+    if opts.repro:
+        return repro(opts)
     import numpy as np
 
     from gi_preview.blender import demo_scenes, reference
@@ -152,6 +167,104 @@ def main(argv=None):
         with open(jpath, "w") as f:
             json.dump(out, f, indent=1, default=float)
     log(f"wrote {jpath}")
+    return out
+
+
+def tables(tech: str, path: str, before: str = "") -> str:
+    """The Markdown results table of one technique (with DIRECT's row per scene); with
+    ``before``, the relMSE vs one_bounce of that earlier run in a second column."""
+    with open(path) as f:
+        cur = json.load(f)
+    old = {}
+    if before:
+        with open(before) as f:
+            old = json.load(f)["scenes"]
+
+    def sp(x):
+        v = (x or {}).get("speedup")
+        return "n/a" if v is None else f"{v:.2g}×"
+
+    ao = tech != "SSR"
+    head = ["scene", "q", "ms/frame", "relMSE vs one_bounce"] + (["(before)"] if old else []) + [
+        "FLIP vs one_bounce", "relMSE vs full", "speed-up (one_bounce)"]
+    if ao:
+        head += ["AO relMSE", "AO FLIP", "AO mean (Cycles)", "speed-up (AO)"]
+    rows = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for scene, entry in cur["scenes"].items():
+        for key in ["DIRECT_q1"] + sorted(k for k in entry["techniques"] if k.startswith(tech + "_q")):
+            e = entry["techniques"].get(key)
+            if e is None:
+                continue
+            q = "DIRECT" if key.startswith("DIRECT") else key.split("_q")[-1]
+            r = [scene, q, f"{e['frame_ms']:.1f}", f"{e['vs_one_bounce']['relmse']:.4g}"]
+            if old:
+                o = old.get(scene, {}).get("techniques", {}).get(key)
+                r.append(f"{o['vs_one_bounce']['relmse']:.4g}" if o else "–")
+            r += [f"{e['vs_one_bounce']['flip']:.4g}", f"{e['vs_full']['relmse']:.4g}", sp(e.get("speedup_vs_one_bounce"))]
+            if ao:
+                if "ao_vs_cycles" in e and q != "DIRECT":
+                    r += [f"{e['ao_vs_cycles']['relmse']:.4g}", f"{e['ao_vs_cycles']['flip']:.4g}",
+                          f"{e['ao_mean']:.3f} ({e['ao_ref_mean']:.3f})", sp(e.get("speedup_ao"))]
+                else:
+                    r += [""] * 4
+            rows.append("| " + " | ".join(r) + " |")
+    return "\n".join(rows)
+
+
+def repro(opts):
+    """Issue 9's reproduction scenes: masked errors and reflection total variation."""
+    import numpy as np
+    import bpy
+
+    sys.path.insert(0, os.path.join(REPO, "blender_tests"))
+    import scenes_screen_space as S
+    from gi_preview.blender import reference
+    from gi_preview.blender.export import export_scene
+    from gi_preview.compare import imageio, metrics
+    from gi_preview.render import session
+
+    reference.ensure_oiio()
+    os.makedirs(opts.out, exist_ok=True)
+    techs = ["DIRECT"] + [t for t in opts.techniques.split(",") if t]
+    out = {"res": opts.res, "ref_spp": opts.ref_spp, "samples": opts.samples, "scenes": {}}
+
+    def png(name, img):
+        imageio.write_png(os.path.join(opts.out, name), metrics.view_standard(img))
+
+    for name in [s for s in opts.repro.split(",") if s]:
+        sc = S.build(name, opts.res)
+        sd = export_scene(reference.evaluated_depsgraph(sc))
+        ref, ref_ms = reference.render_cycles(sc, opts.ref_spp, "one_bounce")
+        png(f"repro_{name}_cycles_one_bounce.png", ref)
+        masks = S.masks(name, sd, S.material_ids(sd))
+        entry = {"cycles_ms": ref_ms, "pixels": {k: int(m.sum()) for k, m in masks.items()}, "techniques": {}}
+        for k, m in masks.items():
+            entry.setdefault("cycles_tv", {})[k] = S.total_variation(ref, m)
+        for tech in techs:
+            res = session.render(sd, tech, 1, opts.samples)
+            img = res.image
+            png(f"repro_{name}_{tech}.png", img)
+            heat, _ = metrics.heatmap(img, ref)
+            imageio.write_png(os.path.join(opts.out, f"repro_{name}_{tech}_error.png"), heat)
+            e = {"relmse": metrics.relmse(img, ref), "frame_ms": res.frame_ms,
+                 "nonfinite": int((~np.isfinite(img)).sum()),
+                 "skipped": [x.name for x in res.skipped_passes]}
+            for k, m in masks.items():
+                e[f"relmse_{k}"] = metrics.relmse(img, ref, mask=m)
+                e[f"tv_{k}"] = S.total_variation(img, m)
+            entry["techniques"][tech] = e
+            # ours | Cycles | error side by side: the pages' "paths it cannot represent" figures
+            side = np.concatenate([metrics.view_standard(img), metrics.view_standard(ref),
+                                   np.asarray(heat, np.float64)[..., :3] / (255.0 if heat.dtype == np.uint8 else 1.0)],
+                                  axis=1)
+            imageio.write_png(os.path.join(opts.out, f"repro_{name}_{tech}_side.png"), side)
+            log(f"{name} {tech}: " + ", ".join(f"{k} {v:.4f}" for k, v in e.items() if isinstance(v, float)))
+        out["scenes"][name] = entry
+        bpy.data.scenes.remove(sc)
+    path = os.path.join(REPO, "docs", "results", "screen_space_repro.json")
+    with open(path, "w") as f:
+        json.dump(out, f, indent=1, default=float)
+    log(f"wrote {path}")
     return out
 
 
