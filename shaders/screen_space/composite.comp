@@ -6,10 +6,11 @@
 //   term): L_amb = B * e * sum_{k<bounces} (rho * e)^k (B mean direct-lit radiance, e mean
 //   enclosure 1-AO, rho mean diffuse albedo); diffuse: albedo_d * AO * L_amb.
 // MODE_SSDO (Ritschel et al. 2009): diffuse albedo_d * one bounce from on-screen senders.
-// MODE_SSR (McGuire & Mara 2014, Stachowiak 2015): the resolved incident radiance (hits:
-//   on-screen radiance; misses: the world) replaces DIRECT's world reflection where SSR
-//   traced (signal a = 1, filtered: a blends): glossy = specular albedo * resolved -
-//   a * DIRECT's world glossy term; elsewhere (a = 0: too rough) DIRECT's term stays.
+// MODE_SSR (McGuire & Mara 2014, Stachowiak 2015): the resolved radiance of the hits found
+//   on screen (rgb, weighted by their confidence) replaces the share a of DIRECT's world
+//   reflection they cover: glossy = specular albedo * rgb - a * DIRECT's world glossy term.
+//   The rest, 1 - a (misses, untrusted hits, too rough: a = 0), keeps DIRECT's shadowed
+//   world reflection: the fallback, blended without a seam.
 // Reads and writes "color" in place; writes the AO effect image (MODE_AO / MODE_SSDO) and
 // the effect image: what this pass added (SSR: negative where on-screen geometry replaces
 // DIRECT's world reflection by something darker).

@@ -2,8 +2,11 @@
 
 Passes: DIRECT's three → ``ssdo`` (hemisphere point samples around the normal; blocked
 directions receive the direct-lit radiance ``aov.direct`` of the pixel that blocks them
-when it faces the receiver; directions open within the radius are marched further and a
-surface met there sends too) → ``ssdo_temporal`` → ``ssdo_blur`` → ``ssdo_composite``
+when it faces the receiver, weighted by how far that radiance toward the camera stands for
+the radiance sent to the receiver (its diffuse share; its glossy share only near the camera
+direction); directions open within the radius are marched further and a surface met there
+sends too; directions that leave the screen are unknown and the bounce is the mean over the
+known ones) → ``ssdo_temporal`` → ``ssdo_blur`` → ``ssdo_composite``
 (``color += albedo_d * bounce``; DIRECT already lights with the world, shadowed by its
 world-light maps). The fraction of directions that stay open is the ``GI_AO`` AOV.
 Compared with Cycles "one_bounce" (and "full"). See docs/techniques/SSDO.md.

@@ -1,13 +1,16 @@
 """SSR: screen-space reflections on a Hi-Z pyramid (McGuire & Mara 2014; Uludag 2014;
 Stachowiak 2015).
 
-Passes: DIRECT's three → ``ss_hiz`` (min device-depth pyramid) → ``ssr_trace`` (one GGX
-visible-normal sampled ray per pixel at ``scale``, Hi-Z traversal, ``thickness``, edge
-fade, rays leaving the screen miss) → ``ssr_resolve`` (ratio estimator over
-``resolve_samples`` neighbouring rays, radius growing with roughness; misses fall back to
-the world colour) → ``ssr_temporal`` → ``ssr_composite`` (``color += spec_albedo *
-resolved radiance - aov.world_spec``: the resolved radiance replaces DIRECT's world glossy
-term; surfaces rougher than ``max_roughness`` keep DIRECT's shadowed one). Radiance at a hit is the
+Passes: DIRECT's three → ``ss_hiz`` (min device-depth pyramid, level 0 conservative over
+each pixel's footprint) → ``ssr_trace`` (one GGX visible-normal sampled ray per pixel at
+``scale``, Hi-Z traversal, level-0 hit test against the pixel's plane with ``thickness``
+measured along its normal, edge fade, rays leaving the screen miss) → ``ssr_resolve`` (ratio
+estimator over ``resolve_samples`` neighbouring rays, radius growing with roughness, the own
+ray weighted in closed form so mirrors stay exact; a hit's radiance trusted for its diffuse
+share and its glossy share near the camera direction) → ``ssr_temporal`` → ``ssr_composite``
+(``color += spec_albedo * found - a * aov.world_spec``: what was found on screen replaces its
+share ``a`` of DIRECT's shadowed world reflection, which stays as the fallback for the rest —
+misses, untrusted hits, surfaces rougher than ``max_roughness``). Radiance at a hit is the
 direct-lit colour without emission (one bounce; emitters' glossy reflection is DIRECT's).
 All SSR passes provide INDIRECT_SPECULAR: the planner skips them, saying "no glossy
 surface in view", on a scene without one. Compared with Cycles "one_bounce".
@@ -16,7 +19,7 @@ See docs/techniques/SSR.md.
 | parameter | range | meaning |
 |---|---|---|
 | steps | 8–1024 | Hi-Z traversal iterations per ray |
-| thickness | 0.001–10 | assumed thickness of the depth buffer (scene units) |
+| thickness | 0.001–10 | assumed thickness of surfaces, along their normal (scene units) |
 | max_distance | 0.1–1000 | ray length (scene units) |
 | max_roughness | 0–1 | rougher surfaces keep DIRECT's world reflection |
 | edge_fade | 0–0.5 | screen fraction over which hits fade at the border |
@@ -45,7 +48,7 @@ class SSRTracePass(ScreenPass):
     name = "ssr_trace"
     params = (
         Param("steps", 64, 8, 1024, "Hi-Z traversal iterations per ray"),
-        Param("thickness", 0.15, 0.001, 10.0, "depth-buffer thickness (scene units)"),
+        Param("thickness", 0.15, 0.001, 10.0, "assumed thickness of surfaces, along their normal (scene units)"),
         Param("max_distance", 20.0, 0.1, 1000.0, "ray length (scene units)"),
         Param("max_roughness", 0.7, 0.0, 1.0, "rougher surfaces use the fallback"),
         Param("edge_fade", 0.08, 0.0, 0.5, "screen fraction over which hits fade at the border"),
