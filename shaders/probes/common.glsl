@@ -11,7 +11,7 @@
 // -> atlas tile (s.x + cx*s.y, s.z) (irradiance tiles u_irr_size texels, distance tiles
 // u_dist_size texels, both with a one-texel octahedral border), -> texel (s.x + cx*s.y, s.z)
 // of the state texture (xyz = relocation offset in world units, w = state: 0 active,
-// 1 inactive).
+// 1 inactive, -1 active and moved this frame).
 // Atlases hold irradiance E (W/m^2, rgb; a = updates since reset) and the mean distance and
 // mean squared distance (rg) to the first surface, float32 (nothing clamped).
 #ifndef GI_PROBES_COMMON_GLSL

@@ -51,12 +51,13 @@ void main() {
 #ifdef PROBE_RELOCATE
     if (inside) {
         off += dir_back * (close_back + 0.5 * u_min_frontface);
-    } else if (close_front < u_min_frontface) {
-        off -= dir_front * (u_min_frontface - close_front);
     }
     off = clamp(off, -u_max_offset * u_probe_spacing, u_max_offset * u_probe_spacing);
 #endif
-    float state = 0.0;
+    // an active probe that moved more than 1 % of a cell is flagged (w = -1): next frame's rays
+    // are the first from its new place, and the update restarts its atlases from them (the
+    // old distances would let light through walls the probe now sits beside)
+    float state = any(greaterThan(abs(off - st.xyz), 0.01 * u_probe_spacing)) ? -1.0 : 0.0;
 #ifdef PROBE_CLASSIFY
     if (inside || !near_surface) state = 1.0;
 #endif

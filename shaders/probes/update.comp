@@ -9,6 +9,7 @@
 //   - the first updates after a reset average: h <= age / (age + u_ramp) (warm-up);
 //   - a large change (relative luminance change above u_change_threshold: a light switched)
 //     uses h * 0.25, so the probes follow quickly without boiling in steady state.
+// A probe relocated last frame (state w = -1) restarts like a reset one.
 // Inactive probes (RTXGI classification) keep their stored value. Rays 0..u_fixed_rays-1
 // (RTXGI's fixed set for relocation/classification) are not blended.
 // With PROBE_STATS the irradiance update also writes the per-texel relative change of the
@@ -28,6 +29,7 @@ layout(binding = 1, r32f) uniform writeonly image2D o_change;
 uniform sampler2D u_prev;        // last frame's atlas
 uniform sampler2D u_ray_tex;        // trace.comp's output
 uniform sampler2D u_state;       // this frame's probe state
+uniform sampler2D u_state_prev;  // last frame's: w = -1 where the probe moved (its rays are new)
 uniform float u_hysteresis;
 uniform float u_change_threshold;
 uniform float u_ramp;
@@ -48,7 +50,7 @@ void main() {
     ivec3 s = slot_from_tile(tile);
     int pi = slot_index(s);
     vec4 prev = texelFetch(u_prev, texel, 0);
-    bool reset = u_reset != 0 || slot_is_new(s);
+    bool reset = u_reset != 0 || slot_is_new(s) || texelFetch(u_state_prev, tile, 0).w < -0.5;
     if (reset) prev = vec4(0.0);
     vec4 st = texelFetch(u_state, tile, 0);
     if (st.w > 0.5) {  // inactive: not traced this frame, keep what it had

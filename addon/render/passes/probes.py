@@ -93,7 +93,7 @@ GRID_PARAMS = (
     Param("probes_x", 0, 0, 64, "probes along x (0 = automatic)"),
     Param("probes_y", 0, 0, 64, "probes along y (0 = automatic)"),
     Param("probes_z", 0, 0, 64, "probes along z (0 = automatic)"),
-    Param("margin", 0.05, 0.0, 1.0, "the volume grows past the scene's bounds by this fraction of a cell"),
+    Param("margin", 0.05, -0.5, 1.0, "the volume grows past the scene bounds by this fraction of a cell (negative: shrinks)"),
     Param("rays", 128, 8, 1024, "rays per probe per frame"),
     Param("follow_camera", 0, 0, 1, "1: the volume is centred on the camera and scrolls with it"),
     Param("infinite_bounces", 1, 0, 1, "1: hits add last frame's probe irradiance (0: one bounce only)"),
@@ -377,7 +377,7 @@ class ProbeUpdatePass(ProbePass):
     def __init__(self, volume, quality=None, **kw):
         super().__init__(volume, quality, **kw)
         volume.update_pass = self
-        self.reads = (RAYS, STATE, IRR + PREV, DIST + PREV)
+        self.reads = (RAYS, STATE, STATE + PREV, IRR + PREV, DIST + PREV)
         self.writes = (IRR, DIST, CHANGE)
         self.variability = None
         self._frames = 0
@@ -419,6 +419,7 @@ class ProbeUpdatePass(ProbePass):
             units.tex(prog, "u_prev", res[prev])
             units.tex(prog, "u_ray_tex", res[RAYS])
             units.tex(prog, "u_state", res[STATE])
+            units.tex(prog, "u_state_prev", res[STATE + PREV])
             set_uniform(prog, "u_hysteresis", float(self["hysteresis"]))
             set_uniform(prog, "u_change_threshold", float(self["change_threshold"]))
             set_uniform(prog, "u_ramp", float(self["ramp"]))

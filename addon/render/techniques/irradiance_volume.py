@@ -6,7 +6,9 @@ octahedral map (8×8 texels with borders, float32), trilinear interpolation betw
 surrounding probes, no distance test, no surface bias, no wrap weights. This is the baseline
 that shows light leaks: a probe on the lit side of a thin wall lights the dark side. The
 rays, shading, hysteresis and infinite bounces are DDGI's (same code), so the leak is the
-only difference measured. (The distance atlas is still updated; the lookup ignores it.)
+only difference measured. (The distance atlas is still updated; the lookup ignores it.) The volume's outer probes sit half a
+cell inside the scene's bounds (``margin`` -0.5): without visibility, probes outside the walls
+would darken every surface near a wall.
 Parameters and quality ladder: as DDGI (see ddgi.py). Compared with Cycles "full".
 See docs/techniques/IRRADIANCE_VOLUME.md.
 """
@@ -33,4 +35,4 @@ class IrradianceVolume(Technique):
 
     def passes(self, quality):
         return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality),
-                *probe_chain(IV_CONFIG, quality)]
+                *probe_chain(IV_CONFIG, quality, probe_trace={"margin": -0.5})]

@@ -10,7 +10,8 @@ probe's cell); an optional camera-following volume that scrolls by whole cells
 (``probe_trace.follow_camera``); warm-up that ends when the probes' variability (mean
 relative change of the stored irradiance per frame) is below ``converge_threshold``; and
 glossy indirect light from the probes in the reflection direction
-(``color += specular albedo × E(R)/π``). Compared with Cycles "full".
+(``color += specular albedo × E(R)/π``). The outer probes sit half a cell inside the scene's
+bounds (``margin`` -0.5); relocation moves the ones that still end up in geometry. Compared with Cycles "full".
 See docs/techniques/RTXGI.md. Parameters: DDGI's, plus
 ``probe_state.backface_ratio`` (0.25), ``min_frontface`` (0.2 cell), ``max_offset`` (0.45 cell),
 ``probe_trace.follow_camera`` (0/1), ``probe_update.converge_threshold``.
@@ -41,7 +42,7 @@ class RTXGI(Technique):
     outputs = {**DIRECT_OUTPUTS, **PROBE_OUTPUTS}
 
     def passes(self, quality):
-        chain = probe_chain(RTXGI_CONFIG, quality)
+        chain = probe_chain(RTXGI_CONFIG, quality, probe_trace={"margin": -0.5})
         for p in chain:
             p.provides = RTXGI_PROVIDES
         return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality), *chain]
