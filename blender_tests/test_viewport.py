@@ -163,7 +163,7 @@ def test_viewport_updates_are_incremental(monkeypatch):
         n_meshes = len(eng._viewport.data.meshes)
         assert first["full"] and first["meshes_read"] == n_meshes
         draw_until_idle(eng, ctx, _depsgraph(sc), max_draws=2)
-        box = next(o for o in sc.objects if o.name.endswith("tall_box"))
+        box = next(o for o in sc.objects if o.name.split(".")[1:2] == ["tall_box"])
         meshes_before = list(eng._viewport.data.meshes)
         box.location.x += 0.1
         with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
@@ -311,7 +311,7 @@ def test_scene_edits_reset_history_as_declared():
         frame()
         n0 = len(last_events())
         assert frame().history_resets == []  # nothing changed
-        box = next(o for o in sc.objects if o.name.endswith("tall_box"))
+        box = next(o for o in sc.objects if o.name.split(".")[1:2] == ["tall_box"])
         box.location.x += 0.05
         res = frame()
         log = last_events()[n0:]
