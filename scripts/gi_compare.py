@@ -176,18 +176,6 @@ def _clean_json(o):
     return o
 
 
-def _speedup_text(s: dict) -> str:
-    """"2.3x", "<=0.8x" / ">=12x" (outside the baseline's curve: a bound), or "n/a"."""
-    if s.get("speedup") is not None:
-        return f"{s['speedup']:.3g}x"
-    b = s.get("bound") or {}
-    if b.get("at_most") is not None:
-        return f"<={b['at_most']:.3g}x"
-    if b.get("at_least") is not None:
-        return f">={b['at_least']:.3g}x"
-    return "n/a"
-
-
 def _load_scene(bpy, name_or_path: str | None, demo_scenes):
     if name_or_path is None:
         return bpy.context.scene
@@ -402,7 +390,7 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
             images[report.entry_id(tech, q, k)] = {"ours": ours_png,
                                                    "cycles": imageio.png_bytes(metrics.view_standard(ref.image)),
                                                    "error": imageio.png_bytes(heat)}
-            spt = "  ".join(f"{b} {_speedup_text(v)}" for b, v in sps.items())
+            spt = "  ".join(f"{b} {sweep.speedup_text(v, plain=True)}" for b, v in sps.items())
             log(f"  vs {k}: {time_ms:.2f} ms (+ setup {setup_ms:.0f} ms)  relMSE {m['relmse']:.4g}  "
                 f"FLIP {m['flip']:.4g}  SSIM {m['ssim']:.4f}  speed-up: {spt}")
     gl_call(session.release_all)

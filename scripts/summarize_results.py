@@ -12,9 +12,17 @@ and their setup.
 """
 from __future__ import annotations
 
+import importlib
 import json
+import os
 import sys
 from pathlib import Path
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _checkout import import_checkout_package  # noqa: E402
+
+import_checkout_package()
+speedup_text = importlib.import_module("gi_preview.compare.sweep").speedup_text
 
 BASELINES = ("cycles", "cycles_denoised", "eevee")
 LABELS = {"cycles": "Cycles", "cycles_denoised": "Cycles + OIDN", "eevee": "EEVEE"}
@@ -27,18 +35,6 @@ def fmt(v, f="{:.4g}"):
         return f.format(v)
     except (TypeError, ValueError):
         return str(v)
-
-
-def speedup_text(s: dict | None) -> str:
-    s = s or {}
-    if s.get("speedup") is not None:
-        return f"{s['speedup']:.3g}×"
-    b = s.get("bound") or {}
-    if b.get("at_most") is not None:
-        return f"≤{b['at_most']:.3g}×"
-    if b.get("at_least") is not None:
-        return f"≥{b['at_least']:.3g}×"
-    return "n/a"
 
 
 def main(paths: list[str]) -> str:

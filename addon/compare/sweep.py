@@ -30,6 +30,22 @@ _PALETTE = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#
             "#17becf", "#bcbd22", "#7f7f7f"]
 
 
+def speedup_text(s: dict | None, *, plain: bool = False) -> str:
+    """An equal-error speed-up entry as text: "2.3×", "≤0.8×" / "≥12×" when the technique's
+    error lies outside the baseline's curve (a bound), or "n/a". ``plain``: ASCII ("x", "<=",
+    ">=") for consoles and logs."""
+    s = s or {}
+    times, le, ge = ("x", "<=", ">=") if plain else ("×", "≤", "≥")
+    if s.get("speedup") is not None:
+        return f"{s['speedup']:.3g}{times}"
+    b = s.get("bound") or {}
+    if b.get("at_most") is not None:
+        return f"{le}{b['at_most']:.3g}{times}"
+    if b.get("at_least") is not None:
+        return f"{ge}{b['at_least']:.3g}{times}"
+    return "n/a"
+
+
 def _curve_tuples(curve, metric: str = "relmse") -> list[tuple[float, float, float]]:
     out = []
     for c in curve:
