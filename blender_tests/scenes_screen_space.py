@@ -140,3 +140,43 @@ def total_variation(img: np.ndarray, mask: np.ndarray, axis: int | None = None) 
         diffs.append(d[m])
     d = np.concatenate(diffs)
     return float(d.mean()) if d.size else 0.0
+
+
+def read_resource(session_key: str, name: str, comps: int) -> np.ndarray:
+    """A frame-graph resource of session ``session_key`` after its last render, (H, W, comps)."""
+    from gi_preview.render import session
+    from gi_preview.render.gl import get_gl
+
+    t = session._sessions[session_key].rc.resources[name]
+    w, h = t.size
+
+    def read():
+        dt = np.float16 if t.dtype == "f2" else np.float32
+        return np.frombuffer(t.read(), dt).reshape(h, w, t.components)[..., :comps].astype(np.float32)
+    return get_gl().submit(read).result()
+
+
+def seam_pairs(found: np.ndarray, mask: np.ndarray, jump: float = 0.25) -> list:
+    """Neighbouring pixel pairs (both in ``mask``) across which SSR's found share ``found``
+    (H, W) changes by more than ``jump``: the hit/miss boundaries. Returns [(a_idx, b_idx)]
+    as pairs of index tuples for vertical and horizontal neighbours."""
+    out = []
+    for ax in (0, 1):
+        a = found[1:, :] if ax == 0 else found[:, 1:]
+        b = found[:-1, :] if ax == 0 else found[:, :-1]
+        ma = mask[1:, :] & mask[:-1, :] if ax == 0 else mask[:, 1:] & mask[:, :-1]
+        sel = ma & (np.abs(a - b) > jump)
+        ys, xs = np.nonzero(sel)
+        if ax == 0:
+            out.append(((ys + 1, xs), (ys, xs)))
+        else:
+            out.append(((ys, xs + 1), (ys, xs)))
+    return out
+
+
+def seam_gradient(img: np.ndarray, pairs: list) -> tuple[float, int]:
+    """Mean absolute luminance difference of ``img`` over the pixel pairs of ``seam_pairs``
+    (the image's gradient across hit/miss boundaries) and the number of pairs."""
+    lum = img[..., :3] @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    d = np.concatenate([np.abs(lum[a] - lum[b]) for a, b in pairs]) if pairs else np.zeros(0)
+    return (float(d.mean()) if d.size else 0.0), int(d.size)

@@ -355,3 +355,50 @@ def test_ssdo_ceiling_lit_only_by_the_floor():
         assert abs(ours - theirs) <= 0.3 * theirs
     finally:
         bpy.data.scenes.remove(sc)
+
+
+def test_ssr_miss_fallback_is_a_composite_argument():
+    """SSR's miss fallback is a constructor argument of its composite (issue 9 point 3:
+    probes or another technique provide it): ``color += ks found + (1 - a) fallback -
+    replaced``. With DIRECT's reflected direct light as a stand-in fallback, the image
+    differs from the default (fallback = replaced = DIRECT's world reflection) by exactly
+    ``(1 - a) (fallback - world_spec)`` per pixel, where ``a`` is the share found on screen."""
+    from gi_preview.render import techniques
+    from gi_preview.render.passes.gbuffer import GBufferPass
+    from gi_preview.render.passes.screen_space import DIRECT_RADIANCE, WORLD_SPEC
+    from gi_preview.render.passes.shadows import ShadowPass
+    from gi_preview.render.techniques.direct import DirectLightPass
+    from gi_preview.render.techniques.ssr import SSR, ssr_passes
+
+    class SSRWithFallback(SSR):
+        id = "SSR_FALLBACK_TEST"
+
+        def passes(self, quality):
+            return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality),
+                    *ssr_passes(quality, fallback=DIRECT_RADIANCE, replaces=(WORLD_SPEC,))]
+
+    sc = repro.build("corridor", 40)
+    techniques.REGISTRY[SSRWithFallback.id] = SSRWithFallback
+    try:
+        sd = _export(sc)
+        base = session.render(sd, "SSR", 1, 1, session="ss_fb_base").image
+        res = session.render(sd, SSRWithFallback.id, 1, 1, session="ss_fb")
+        a = np.clip(_read_resource("ss_fb", "ssr.temporal", 4)[..., 3:4], 0.0, 1.0)
+        ws = _read_resource("ss_fb", WORLD_SPEC, 3)
+        fb = _read_resource("ss_fb", DIRECT_RADIANCE, 3)
+        glossy = _read_resource("ss_fb", "gbuffer.position", 4)[..., 3] >= 0
+        expect = (1.0 - a) * (fb - ws)
+        diff = res.image[..., :3] - base[..., :3]
+        err = np.abs(diff - expect)[glossy].max()
+        missed = ((1.0 - a[..., 0]) * np.abs(fb - ws).mean(-1) > 1e-2) & glossy
+        print(f"fallback: max |diff - (1-a)(fb-ws)| {err:.2e}; {missed.sum()} px take the fallback, "
+              f"{int((a[..., 0] > 0.5).sum())} px found on screen")
+        assert missed.sum() > 20 and (a[..., 0] > 0.5).sum() > 20  # both branches exercised
+        assert err <= 1e-3 * max(1.0, float(np.abs(fb).max()))
+        with pytest.raises(ValueError):
+            ssr_passes(1, replaces=("a", "b", "c"))
+    finally:
+        techniques.REGISTRY.pop(SSRWithFallback.id, None)
+        for k in ("ss_fb", "ss_fb_base"):
+            session.release_session(k)
+        bpy.data.scenes.remove(sc)

@@ -22,8 +22,14 @@ frame, and time x samples for the accumulated image). Measured:
 scenes (``blender_tests/scenes_screen_space.py``) at ``--res`` (64 in the pages) against
 Cycles "one_bounce": relMSE over the whole image and masked to each named surface (the
 reflective floor and gold wall, the indirectly lit ceiling), and the total variation of
-the reflections (ours vs Cycles'), into ``docs/results/screen_space_repro.json`` and
+the reflections (ours vs Cycles'), and for SSR/AUTO the seam between found reflections and
+the miss fallback (the mean luminance step across pixel pairs where SSR's found share
+jumps by more than 0.25, ours vs Cycles' on the same pairs), into
+``docs/results/screen_space_repro.json`` and
 ``<out>/repro_<scene>_*.png``.
+
+``--motion corridor`` measures SSR's temporal reprojection under camera motion (reflection
+lag: reprojection by the reflected point vs by the surface; ``docs/results/screen_space_motion.json``).
 
 Writes ``<out>/<scene>_<TECH>_q<Q>.png`` (ours), ``<scene>_cycles_<kind>.png``,
 ``<scene>_<TECH>_q<Q>_vs_<kind>_error.png`` (relMSE heat map), the AO images, and
@@ -65,6 +71,7 @@ def main(argv=None):
     p.add_argument("--out", default=os.path.join(REPO, "docs", "techniques", "img"))
     p.add_argument("--cache", default=None)
     p.add_argument("--repro", default="", help="issue 9's reproduction scenes instead of the demo scenes")
+    p.add_argument("--motion", default="", help="reflection lag under camera motion on these reproduction scenes")
     p.add_argument("--tables", default="", help="print the pages' tables of TECH from <out>/screen_space_results.json")
     p.add_argument("--before", default="", help="with --tables: an earlier results JSON, shown beside")
     opts = p.parse_args(argv)
@@ -74,6 +81,8 @@ def main(argv=None):
     _import_pkg()
     if opts.repro:
         return repro(opts)
+    if opts.motion:
+        return motion(opts)
     import numpy as np
 
     from gi_preview.blender import demo_scenes, reference
@@ -241,7 +250,8 @@ def repro(opts):
         for k, m in masks.items():
             entry.setdefault("cycles_tv", {})[k] = S.total_variation(ref, m)
         for tech in techs:
-            res = session.render(sd, tech, 1, opts.samples)
+            key = f"repro_{name}_{tech}"
+            res = session.render(sd, tech, 1, opts.samples, session=key)
             img = res.image
             png(f"repro_{name}_{tech}.png", img)
             heat, _ = metrics.heatmap(img, ref)
@@ -252,6 +262,14 @@ def repro(opts):
             for k, m in masks.items():
                 e[f"relmse_{k}"] = metrics.relmse(img, ref, mask=m)
                 e[f"tv_{k}"] = S.total_variation(img, m)
+            if tech in ("SSR", "AUTO") and "reflective" in masks:
+                # the seam between found reflections and the fallback: the image's gradient
+                # across the hit/miss boundaries (SSR's found share jumps by > 0.25), ours vs Cycles'
+                found = S.read_resource(key, "ssr.temporal", 4)[..., 3]
+                pairs = S.seam_pairs(found, masks["reflective"])
+                e["seam_grad"], e["seam_pairs"] = S.seam_gradient(img, pairs)
+                e["seam_grad_cycles"], _ = S.seam_gradient(ref, pairs)
+            session.release_session(key)
             entry["techniques"][tech] = e
             # ours | Cycles | error side by side: the pages' "paths it cannot represent" figures
             side = np.concatenate([metrics.view_standard(img), metrics.view_standard(ref),
@@ -266,6 +284,81 @@ def repro(opts):
         json.dump(out, f, indent=1, default=float)
     log(f"wrote {path}")
     return out
+
+
+def motion(opts):
+    """SSR's temporal reprojection under camera motion: the camera dollies along the
+    corridor (``STEP`` scene units per frame, 12 frames), rendered viewport-style (one frame
+    per call, history kept) with the history reprojected by the reflected point (SSR's
+    default) and by the reflecting surface's motion (the code before); each frame is
+    compared, masked to the reflective surfaces, with a fresh 16-frame render of SSR at that
+    camera (no history, so no lag). Writes ``docs/results/screen_space_motion.json`` and
+    ``<out>/motion_<scene>_<variant>.png`` (the last frame)."""
+    import copy
+
+    import numpy as np
+
+    sys.path.insert(0, os.path.join(REPO, "blender_tests"))
+    import scenes_screen_space as S
+    from gi_preview.blender import reference
+    from gi_preview.blender.export import export_scene
+    from gi_preview.compare import imageio, metrics
+    from gi_preview.render import session, techniques
+    from gi_preview.render.passes.gbuffer import GBufferPass
+    from gi_preview.render.passes.shadows import ShadowPass
+    from gi_preview.render.techniques.direct import DirectLightPass
+    from gi_preview.render.techniques.ssr import SSR, ssr_passes
+
+    class SSRSurfaceMotion(SSR):
+        id = "SSR_SURFACE_MOTION"
+
+        def passes(self, q):
+            return [GBufferPass(q), ShadowPass(q), DirectLightPass(q), *ssr_passes(q, reproject_by_hit=False)]
+
+    techniques.REGISTRY[SSRSurfaceMotion.id] = SSRSurfaceMotion
+    reference.ensure_oiio()
+    os.makedirs(opts.out, exist_ok=True)
+    step = np.array([0.0, 0.08, 0.0])
+    frames = 12
+    out = {"res": opts.res, "frames": frames, "step": step.tolist(), "scenes": {}}
+    variants = {"reflected_point": "SSR", "surface_motion": SSRSurfaceMotion.id}
+    for name in [s for s in opts.motion.split(",") if s]:
+        sc = S.build(name, opts.res)
+        sd = export_scene(reference.evaluated_depsgraph(sc))
+        mask = S.masks(name, sd, S.material_ids(sd))["reflective"]
+        errs = {v: [] for v in variants}
+        for k in range(frames):
+            moved = copy.deepcopy(sd)
+            m = moved.camera.matrix_world.astype(np.float64).copy()
+            m[:3, 3] += step * k
+            moved.camera.matrix_world = m.astype(moved.camera.matrix_world.dtype)
+            truth = session.render(moved, "SSR", 1, 16, session="motion_truth").image
+            for v, tech in variants.items():
+                img = session.render(moved, tech, 1, 1, keep_history=True, session="motion_" + v).image
+                errs[v].append(metrics.relmse(img, truth, mask=mask))
+                if k == frames - 1:
+                    imageio.write_png(os.path.join(opts.out, f"motion_{name}_{v}.png"), metrics.view_standard(img))
+            if k == frames - 1:
+                imageio.write_png(os.path.join(opts.out, f"motion_{name}_still16.png"), metrics.view_standard(truth))
+        for key in ["motion_truth"] + ["motion_" + v for v in variants]:
+            session.release_session(key)
+        entry = {v: {"per_frame": e, "mean_frames_4_12": float(np.mean(e[3:]))} for v, e in errs.items()}
+        out["scenes"][name] = entry
+        log(f"{name}: reflection error vs a still 16-frame render, frames 4-12: " + ", ".join(
+            f"{v} {entry[v]['mean_frames_4_12']:.4f}" for v in variants))
+        bpy_scene_remove(sc)
+    techniques.REGISTRY.pop(SSRSurfaceMotion.id, None)
+    path = os.path.join(REPO, "docs", "results", "screen_space_motion.json")
+    with open(path, "w") as f:
+        json.dump(out, f, indent=1, default=float)
+    log(f"wrote {path}")
+    return out
+
+
+def bpy_scene_remove(sc):
+    import bpy
+
+    bpy.data.scenes.remove(sc)
 
 
 if __name__ == "__main__":

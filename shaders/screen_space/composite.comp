@@ -7,10 +7,12 @@
 //   enclosure 1-AO, rho mean diffuse albedo); diffuse: albedo_d * AO * L_amb.
 // MODE_SSDO (Ritschel et al. 2009): diffuse albedo_d * one bounce from on-screen senders.
 // MODE_SSR (McGuire & Mara 2014, Stachowiak 2015): the resolved radiance of the hits found
-//   on screen (rgb, weighted by their confidence) replaces the share a of DIRECT's world
-//   reflection they cover: glossy = specular albedo * rgb - a * DIRECT's world glossy term.
-//   The rest, 1 - a (misses, untrusted hits, too rough: a = 0), keeps DIRECT's shadowed
-//   world reflection: the fallback, blended without a seam.
+//   on screen (rgb, weighted by their confidence) covers the share a of the lobe; the rest,
+//   1 - a (misses, untrusted hits, too rough: a = 0), takes the fallback u_fallback (default
+//   DIRECT's shadowed world reflection aov.world_spec; a probe technique can pass its own),
+//   and both replace the glossy terms already in colour (u_replaced0..N_REPLACED-1, default
+//   aov.world_spec): add = ks * rgb + (1 - a) * fallback - replaced. a varies smoothly
+//   (confidence fades, temporal mean), so found and fallback blend without a seam.
 // Reads and writes "color" in place; writes the AO effect image (MODE_AO / MODE_SSDO) and
 // the effect image: what this pass added (SSR: negative where on-screen geometry replaces
 // DIRECT's world reflection by something darker).
@@ -29,7 +31,9 @@ layout(binding = 2, rgba32f) uniform writeonly image2D o_effect;  // what this p
 
 uniform sampler2D u_signal;
 #ifdef MODE_SSR
-uniform sampler2D u_world_spec;  // DIRECT's world glossy term (aov.world_spec)
+uniform sampler2D u_fallback;    // glossy light for the share not found (default aov.world_spec)
+uniform sampler2D u_replaced0;   // glossy terms already in colour that SSR replaces (N_REPLACED)
+uniform sampler2D u_replaced1;
 #endif
 #ifdef MODE_AO
 uniform sampler2D u_stats0;
@@ -77,7 +81,15 @@ void main() {
     imageStore(o_ao, px, vec4(vec3(vis), 1.0));
 #endif
 #ifdef MODE_SSR
-    add = ks * max(sig.rgb, vec3(0.0)) - clamp(sig.a, 0.0, 1.0) * texelFetch(u_world_spec, px, 0).rgb;
+    float found_share = clamp(sig.a, 0.0, 1.0);
+    vec3 replaced = vec3(0.0);
+#if N_REPLACED > 0
+    replaced += texelFetch(u_replaced0, px, 0).rgb;
+#endif
+#if N_REPLACED > 1
+    replaced += texelFetch(u_replaced1, px, 0).rgb;
+#endif
+    add = ks * max(sig.rgb, vec3(0.0)) + (1.0 - found_share) * texelFetch(u_fallback, px, 0).rgb - replaced;
 #endif
     vec4 c = imageLoad(io_color, px);
     vec3 total = sanitize(c.rgb + add);

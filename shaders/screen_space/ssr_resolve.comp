@@ -21,6 +21,8 @@
 // Output: rgb = sum(w conf L_hit) / sum(w) (demodulated incident radiance of the hits),
 // a = sum(w conf) / sum(w) (the share of the lobe found on screen); both 0 where there is
 // no glossy lobe or the surface is rougher than u_max_roughness (DIRECT's term stays).
+// o_hit_dist: the found hits' mean distance (same weights; 0 = none), with which the
+// temporal pass reprojects the reflection by the reflected point.
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/rng.glsl"
@@ -31,6 +33,7 @@
 
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, rgba16f) uniform writeonly image2D o_spec;
+layout(binding = 1, r32f) uniform writeonly image2D o_hit_dist;  // weighted mean hit distance, 0 = none
 
 uniform sampler2D u_ray0;
 uniform sampler2D u_ray1;
@@ -43,6 +46,7 @@ void main() {
     ivec2 osize = imageSize(o_spec);
     if (any(greaterThanEqual(px, osize))) return;
     GPixel g = fetch_g(px);
+    imageStore(o_hit_dist, px, vec4(0.0));
     if (!g.valid) { imageStore(o_spec, px, vec4(0.0)); return; }
     Surface s = fetch_surface(px, g.mid);
     vec3 V = view_dir(g.P);
@@ -57,7 +61,7 @@ void main() {
     float radius = 1.0 + 3.0 * s.roughness;
     float a2 = s.alpha * s.alpha;
     vec3 sum = vec3(0.0);
-    float cover = 0.0, wsum = 0.0;
+    float cover = 0.0, wsum = 0.0, dsum = 0.0;
     int n = max(u_resolve_samples, 1);
     for (int k = 0; k < n; ++k) {
         ivec2 qq = qc;
@@ -73,11 +77,12 @@ void main() {
         vec3 L = r0.xyz;
         bool found = r1.z > 0.0;
         vec3 Lhit = vec3(0.0);
-        float conf = 0.0;
+        float conf = 0.0, hdist = 0.0;
         if (found) {
             ivec2 hp = ivec2(r1.xy);
             GPixel h = fetch_g(hp);
             vec3 d = h.P - g.P;
+            hdist = length(d);
             if (k > 0 && dot(d, d) > 1e-10) L = normalize(d);
             Lhit = texelFetch(u_radiance, hp, 0).rgb;
             conf = clamp(r1.z, 0.0, 1.0) * view_trust(h, hp, -L);
@@ -94,8 +99,10 @@ void main() {
         if (!(w > 0.0) || isinf(w)) continue;
         sum += w * conf * Lhit;
         cover += w * conf;
+        dsum += w * conf * hdist;
         wsum += w;
     }
+    imageStore(o_hit_dist, px, vec4(cover > 1e-6 ? dsum / cover : 0.0));
     vec3 res = wsum > 0.0 ? sum / wsum : vec3(0.0);
     float a = wsum > 0.0 ? clamp(cover / wsum, 0.0, 1.0) : 0.0;
     imageStore(o_spec, px, vec4(sanitize(res), a));

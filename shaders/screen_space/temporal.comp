@@ -29,6 +29,22 @@ uniform sampler2D u_gb_motion;
 uniform int u_reset;
 uniform float u_max_history;
 uniform vec4 u_background;    // what the signal is on background pixels
+#ifdef REFLECTION_REPROJECT
+// Reflections move with the reflected point, not with the reflecting surface (Stachowiak
+// 2015): a mirror image lies at the virtual point X = P - V * hit distance behind the
+// surface, along the camera ray. Where the resolve found a hit (u_hit_dist > 0), the history
+// is fetched where X was last frame: the surface's motion plus X's parallax relative to P
+// (both through the current and previous view-projection, so the jitter cancels). The tap
+// must still lie on this pixel's plane with a similar normal, but not at this pixel's own
+// surface point (it is another point of the same mirror). No hit: the surface's motion.
+uniform sampler2D u_hit_dist;
+uniform mat4 u_prev_view_proj;
+vec2 prev_pixel(vec3 X) {
+    vec4 c = u_prev_view_proj * vec4(X, 1.0);
+    if (c.w <= 1e-7) return vec2(-1e9);
+    return (c.xy / c.w * 0.5 + 0.5) * u_resolution;
+}
+#endif
 
 vec4 upsample(ivec2 px, vec3 P, vec3 N) {
     ivec2 csize = textureSize(u_current, 0);
@@ -76,6 +92,19 @@ void main() {
     float len = 0.0;
     if (u_reset == 0) {
         vec2 prev = vec2(px) + 0.5 - texelFetch(u_gb_motion, px, 0).xy - 0.5;
+        bool by_hit = false;
+#ifdef REFLECTION_REPROJECT
+        float hd = texelFetch(u_hit_dist, px, 0).r;
+        if (hd > 0.0 && u_ortho == 0) {
+            vec3 X = P - view_dir(P) * hd;
+            vec2 pX = prev_pixel(X), pP = prev_pixel(P);
+            if (pX.x > -1e8 && pP.x > -1e8) {
+                // parallax of X relative to P between the two views
+                prev -= (to_pixel(X) - pX) - (to_pixel(P) - pP);
+                by_hit = true;
+            }
+        }
+#endif
         ivec2 b = ivec2(floor(prev));
         vec2 f = prev - vec2(b);
         float d = view_depth(P);
@@ -95,7 +124,7 @@ void main() {
                 vec3 dp = hp.xyz - P;
                 // the tap's surface point must land within ~1.5 pixels of this pixel now
                 vec2 tp = to_pixel(hp.xyz) - (vec2(px) + 0.5);
-                if (abs(dot(N, dp)) > tol || dot(tp, tp) > 2.25 || dot(hn, N) < 0.9) continue;
+                if (abs(dot(N, dp)) > tol || (!by_hit && dot(tp, tp) > 2.25) || dot(hn, N) < 0.9) continue;
                 float w = (i == 0 ? 1.0 - f.x : f.x) * (j == 0 ? 1.0 - f.y : f.y);
                 hsum += w * texelFetch(u_hist, t, 0);
                 lsum += w * hp.w;

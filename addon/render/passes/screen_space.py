@@ -4,7 +4,8 @@
   (the jittered view-projection the G-buffer was drawn with), the G-buffer and the scene
   buffers; ``scale`` runs a pass at a fraction of the resolution.
 * ``HiZPass``: min device-depth pyramid (``ss.hiz``) for Hi-Z ray marching.
-* ``TemporalPass``: reprojection with ``gbuffer.motion``, disocclusion rejection by plane
+* ``TemporalPass``: reprojection with ``gbuffer.motion`` (reflections, given a hit-distance
+  image: by the reflected point), disocclusion rejection by plane
   distance and normal, running mean capped at ``max_history``; its state (signal, position,
   normal) is history resources the graph double-buffers and clears on the events the
   pass declares.
@@ -162,12 +163,14 @@ class TemporalPass(ScreenPass):
     )
 
     def __init__(self, quality=None, *, source: str, output: str, background=(1.0, 1.0, 1.0, 1.0),
-                 resets=ALL_EVENTS, **kw):
+                 resets=ALL_EVENTS, hit_distance: str | None = None, **kw):
         super().__init__(quality, **kw)
         self.source, self.output = source, output
+        self.hit_distance = hit_distance  # reflections: reproject by the reflected point (temporal.comp)
         self.len_name = output + ".len"
         self.pos_name, self.nrm_name = output + ".pos", output + ".nrm"
-        self.reads = (source, POSITION, NORMAL, MOTION, output + PREV, self.pos_name + PREV, self.nrm_name + PREV)
+        self.reads = (source, POSITION, NORMAL, MOTION, output + PREV, self.pos_name + PREV, self.nrm_name + PREV) + (
+            (hit_distance,) if hit_distance else ())
         self.writes = (output, self.len_name, self.pos_name, self.nrm_name)
         self.declared = (Res(output, history=True, check="radiance"), Res(self.pos_name, history=True),
                          Res(self.nrm_name, dtype="f2", history=True),
@@ -177,10 +180,14 @@ class TemporalPass(ScreenPass):
         self.prev_vp = None
 
     def execute(self, rc, frame):
-        prog = rc.programs.compute("screen_space/temporal.comp")
+        prog = rc.programs.compute("screen_space/temporal.comp",
+                                   {"REFLECTION_REPROJECT": 1} if self.hit_distance else None)
         bind_frame(rc, prog, frame)
         units = Units(1)
         res = rc.resources
+        if self.hit_distance:
+            units.tex(prog, "u_hit_dist", res[self.hit_distance])
+            set_uniform(prog, "u_prev_view_proj", np.asarray(frame.prev_view_proj, np.float32))
         units.tex(prog, "u_current", res[self.source])
         units.tex(prog, "u_hist", res[self.output + PREV])
         units.tex(prog, "u_hist_pos", res[self.pos_name + PREV])
@@ -270,21 +277,39 @@ class AmbientStatsPass(ScreenPass):
 
 
 # ---------------------------------------------------------------- composite
+MAX_REPLACED = 2
+
+
 class CompositePass(ScreenPass):
-    """color += the technique's indirect light (see composite.comp for each mode)."""
+    """color += the technique's indirect light (see composite.comp for each mode).
+
+    SSR mode, miss fallback (issue 9 point 3): ``fallback`` names the resource holding the
+    glossy light (radiance already multiplied by the specular albedo, the units added to
+    ``color``) that stands for the share ``1 - a`` of the lobe SSR did not find on screen;
+    ``replaces`` names the glossy terms ``color`` already contains which SSR's result
+    (found share + fallback share) replaces in full (at most ``MAX_REPLACED``). The pass
+    adds ``ks * found + (1 - a) * fallback - sum(replaces)``. Default: DIRECT's shadowed
+    world reflection for both, i.e. ``ks * found - a * aov.world_spec``. Another technique
+    (probes) passes its own glossy resource as ``fallback`` and lists what of its own it
+    already added to ``color`` in ``replaces``."""
 
     params = (
         Param("ambient_bounces", 1, 0, 8, "AO modes: bounces of the constant indirect term (0 = none)"),
     )
 
-    def __init__(self, quality=None, *, mode: str, signal: str, ao_output: str | None = None, **kw):
+    def __init__(self, quality=None, *, mode: str, signal: str, ao_output: str | None = None,
+                 fallback: str = WORLD_SPEC, replaces: tuple[str, ...] | None = None, **kw):
         super().__init__(quality, **kw)
         self.mode, self.signal, self.ao_output = mode, signal, ao_output
+        self.fallback = fallback
+        self.replaces = tuple((WORLD_SPEC,) if replaces is None else replaces)
+        if len(self.replaces) > MAX_REPLACED:
+            raise ValueError(f"CompositePass: at most {MAX_REPLACED} replaced terms, got {self.replaces}")
         reads = [signal, COLOR, ALBEDO, NORMAL, POSITION, GEONORMAL]
         if mode == "AO":
             reads += [STATS0, STATS1]
         if mode == "SSR":
-            reads += [WORLD_SPEC]
+            reads += [fallback] + [r for r in self.replaces if r != fallback]
         self.reads = tuple(reads)
         self.effect_output = f"{self.name}.effect"  # what this pass adds: the effect's render pass
         self.writes = (COLOR, self.effect_output) + ((ao_output,) if ao_output else ())
@@ -294,7 +319,10 @@ class CompositePass(ScreenPass):
         self.history_resets = frozenset()
 
     def execute(self, rc, frame):
-        prog = self.program(rc, "screen_space/composite.comp", {f"MODE_{self.mode}": 1})
+        defines = {f"MODE_{self.mode}": 1}
+        if self.mode == "SSR":
+            defines["N_REPLACED"] = len(self.replaces)
+        prog = self.program(rc, "screen_space/composite.comp", defines)
         bind_frame(rc, prog, frame)
         units = Units(1)
         res = rc.resources
@@ -305,7 +333,9 @@ class CompositePass(ScreenPass):
             set_uniform(prog, "u_stats_lod", float(int(math.floor(math.log2(max(rc.size))))))
             set_uniform(prog, "u_ambient_bounces", int(self["ambient_bounces"]))
         if self.mode == "SSR":
-            units.tex(prog, "u_world_spec", res[WORLD_SPEC])
+            units.tex(prog, "u_fallback", res[self.fallback])
+            for i, r in enumerate(self.replaces):
+                units.tex(prog, f"u_replaced{i}", res[r])
         bind_gbuffer(rc, prog, units)
         res[COLOR].bind_to_image(0, read=True, write=True)
         if self.ao_output:

@@ -34,14 +34,14 @@ from __future__ import annotations
 from ..framegraph import Effect, Param, Res
 from ..gpu_scene import set_uniform
 from ..passes.gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION, GBufferPass
-from ..passes.screen_space import (DIRECT_RADIANCE, HIZ, CompositePass, HiZPass, ScreenPass, TemporalPass,
+from ..passes.screen_space import (DIRECT_RADIANCE, HIZ, WORLD_SPEC, CompositePass, HiZPass, ScreenPass, TemporalPass,
                                    Units, bind_frame, bind_gbuffer, scaled)
 from ..passes.shadows import ShadowPass
 from . import Technique, register
 from .direct import DIRECT_OUTPUTS, DirectLightPass
 
 SSR_PROVIDES = frozenset({Effect.INDIRECT_SPECULAR})
-RAY0, RAY1, RESOLVED = "ssr.ray0", "ssr.ray1", "ssr.raw"
+RAY0, RAY1, RESOLVED, HIT_DIST = "ssr.ray0", "ssr.ray1", "ssr.raw", "ssr.hit_dist"
 
 
 class SSRTracePass(ScreenPass):
@@ -99,8 +99,8 @@ class SSRResolvePass(ScreenPass):
     quality_ladder = ({"resolve_samples": 4}, {"resolve_samples": 6}, {"resolve_samples": 8},
                       {"resolve_samples": 12})
     reads = (RAY0, RAY1, DIRECT_RADIANCE, ALBEDO, NORMAL, POSITION, GEONORMAL)
-    writes = (RESOLVED,)
-    declared = (Res(RESOLVED, dtype="f2", check="radiance"),)
+    writes = (RESOLVED, HIT_DIST)
+    declared = (Res(RESOLVED, dtype="f2", check="radiance"), Res(HIT_DIST, components=1, check="radiance"))
     history_resets = frozenset()
 
     def execute(self, rc, frame):
@@ -115,6 +115,7 @@ class SSRResolvePass(ScreenPass):
         set_uniform(prog, "u_resolve_samples", int(self["resolve_samples"]))
         set_uniform(prog, "u_max_roughness", float(self["max_roughness"]))
         rc.resources[RESOLVED].bind_to_image(0, read=False, write=True)
+        rc.resources[HIT_DIST].bind_to_image(1, read=False, write=True)
         self.run(rc, prog)
 
 
@@ -129,11 +130,26 @@ class SSR(Technique):
     outputs = {**DIRECT_OUTPUTS, "GI_IndirectGlossy": "ssr_composite.effect"}
 
     def passes(self, quality):
-        p = SSR_PROVIDES
-        trace = SSRTracePass(quality, provides=p)
-        resolve = SSRResolvePass(quality, provides=p, max_roughness=trace["max_roughness"])
-        return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality),
-                HiZPass(quality, provides=p), trace, resolve,
-                TemporalPass(quality, name="ssr_temporal", source=RESOLVED, output="ssr.temporal",
-                             background=(0.0, 0.0, 0.0, 1.0), provides=p, max_history=16),
-                CompositePass(quality, name="ssr_composite", mode="SSR", signal="ssr.temporal", provides=p)]
+        return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality), *ssr_passes(quality)]
+
+
+def ssr_passes(quality, *, provides=SSR_PROVIDES, fallback: str = WORLD_SPEC,
+               replaces: tuple[str, ...] | None = None, reproject_by_hit: bool = True) -> list:
+    """SSR's own passes (Hi-Z, trace, resolve, temporal, composite), to follow DIRECT's.
+
+    ``fallback``/``replaces`` go to the composite (see ``CompositePass``): the glossy light
+    used for the share of the lobe not found on screen (default DIRECT's shadowed world
+    reflection ``aov.world_spec``) and the glossy terms already in ``color`` that SSR's
+    result replaces (default ``(aov.world_spec,)``). A probe technique passes its probe
+    glossy resource as ``fallback`` (written before ``ssr_composite`` runs).
+    ``reproject_by_hit``: the temporal pass follows the reflected point (default) instead of
+    the reflecting surface (kept for measuring the difference)."""
+    p = provides
+    trace = SSRTracePass(quality, provides=p)
+    resolve = SSRResolvePass(quality, provides=p, max_roughness=trace["max_roughness"])
+    return [HiZPass(quality, provides=p), trace, resolve,
+            TemporalPass(quality, name="ssr_temporal", source=RESOLVED, output="ssr.temporal",
+                         background=(0.0, 0.0, 0.0, 1.0), provides=p, max_history=16,
+                         hit_distance=HIT_DIST if reproject_by_hit else None),
+            CompositePass(quality, name="ssr_composite", mode="SSR", signal="ssr.temporal", provides=p,
+                          fallback=fallback, replaces=replaces)]
