@@ -1,0 +1,126 @@
+"""ReSTIR GI pass (Ouyang et al. 2021) on the shared ray tracer (lib/scene_rt.glsl);
+shader ``shaders/restir_gi/restir_gi.comp`` (its header documents the sample, the target
+function, the Jacobian and the stages).
+
+``RestirGIPass`` adds indirect light to ``color`` (which DIRECT's passes wrote):
+
+* stage 0: per pixel one BSDF-sampled secondary ray from the G-buffer point, its hit x_s,
+  n_s and the radiance leaving x_s towards the pixel (next-event estimation at x_s plus a
+  path continuation with Russian roulette, ``max_bounces`` as Cycles counts them; the
+  emission of x_s and the world seen by that first ray are left to DIRECT); temporal reuse of
+  last frame's final reservoir (reprojection through ``gbuffer.motion``, plane/normal tests,
+  validation ray, reconnection Jacobian, M capped at ``m_cap``);
+* stage 1: spatial reuse over ``spatial`` neighbours in ``radius`` pixels (depth/normal
+  tests, validation rays, Jacobian), bias correction ``bias_mode`` (0 = 1/M, 1 = the balance
+  heuristic over the domains, Bitterli 2020 Alg. 6, with ray-traced visibility from each);
+* stage 2: ``color += f L_o W`` split by lobe into ``restir_gi.diffuse`` /
+  ``restir_gi.glossy`` (GI_IndirectDiffuse / GI_IndirectGlossy) and the debug views
+  ``restir_gi.view_w`` (the reservoir's contribution weight W) and ``restir_gi.view_m``
+  (its candidate count M).
+
+Reservoirs are graph-owned history (``restir_gi.pos/nrm/rad`` and the visible point they were
+made for, ``restir_gi.vpos/vnrm``), reset on a camera cut, a parameter change and scene edits
+that change radiance or positions (geometry, transforms, materials, lights, textures).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Effect, Param, Pass, Res
+from ..gpu_scene import set_uniform
+from .gbuffer import ALBEDO, GEONORMAL, MOTION, NORMAL, POSITION
+
+COLOR = "color"
+AOV_DIFFUSE, AOV_GLOSSY = "restir_gi.diffuse", "restir_gi.glossy"
+VIEW_W, VIEW_M = "restir_gi.view_w", "restir_gi.view_m"
+HISTORY = ("restir_gi.pos", "restir_gi.nrm", "restir_gi.rad", "restir_gi.vpos", "restir_gi.vnrm")
+TMP = ("restir_gi.tmp_pos", "restir_gi.tmp_nrm", "restir_gi.tmp_rad")
+BIAS_MODES = ("1/M", "balance heuristic (MIS) with ray-traced visibility")
+# reservoirs hold positions and radiance: any edit of either invalidates them
+RESTIR_GI_RESETS = frozenset({CAMERA_CUT, PARAM_CHANGE, "geometry", "transforms", "materials", "lights", "textures"})
+
+_TEX = (("u_gb_albedo", ALBEDO), ("u_gb_position", POSITION), ("u_gb_normal", NORMAL),
+        ("u_gb_geonormal", GEONORMAL), ("u_gb_motion", MOTION))
+_IN = ("u_in_pos", "u_in_nrm", "u_in_rad", "u_in_vpos", "u_in_vnrm")
+
+
+class RestirGIPass(Pass):
+    name = "restir_gi"
+    kind = "compute"
+    provides = frozenset({Effect.INDIRECT_DIFFUSE, Effect.INDIRECT_SPECULAR})
+    reads = (COLOR, ALBEDO, NORMAL, POSITION, GEONORMAL, MOTION) + tuple(n + "@prev" for n in HISTORY)
+    writes = (COLOR, *HISTORY, *TMP, AOV_DIFFUSE, AOV_GLOSSY, VIEW_W, VIEW_M)
+    declared = (Res(COLOR, check="radiance"),
+                Res("restir_gi.pos", history=True), Res("restir_gi.nrm", history=True),
+                Res("restir_gi.rad", history=True, check="radiance"),
+                Res("restir_gi.vpos", history=True, clear=(0.0, 0.0, 0.0, -1.0)),
+                Res("restir_gi.vnrm", history=True),
+                *(Res(n) for n in TMP),
+                Res(AOV_DIFFUSE, check="radiance"), Res(AOV_GLOSSY, check="radiance"),
+                Res(VIEW_W, check="radiance"), Res(VIEW_M, check="radiance"))
+    history_resets = RESTIR_GI_RESETS
+    warmup_frames = 8
+    params = (
+        Param("temporal", 1, 0, 1, "temporal reuse"),
+        Param("spatial", 4, 0, 16, "spatial neighbours"),
+        Param("radius", 12.0, 1.0, 64.0, "spatial radius (pixels)"),
+        Param("m_cap", 20.0, 1.0, 500.0, "temporal M cap (candidates kept from history)"),
+        Param("bias_mode", 1, 0, 1, "bias correction: 0 = 1/M, 1 = balance heuristic over the domains with ray-traced visibility"),
+        Param("jacobian_max", 10.0, 1.0, 1000.0, "reuse refused when the reconnection Jacobian is above this or below its inverse"),
+        Param("max_bounces", 12, 1, 64, "Cycles' Max Bounces (total) of the secondary path"),
+        Param("rr_start", 3, 1, 64, "Russian roulette after this many bounces"),
+    )
+    quality_ladder = ({"spatial": 2, "radius": 8.0, "max_bounces": 3}, {"spatial": 4, "radius": 12.0},
+                      {"spatial": 6, "radius": 16.0}, {"spatial": 8, "radius": 24.0, "m_cap": 30.0})
+
+    def execute(self, rc, frame):
+        rt = rc.scene.rt()
+        res = rc.resources
+        prog = rc.programs.compute("restir_gi/restir_gi.comp", rt.defines)
+        rt.bind(prog)
+        inv = np.linalg.inv(np.asarray(frame.view, np.float64))
+        set_uniform(prog, "u_camera_pos", tuple(float(x) for x in inv[:3, 3]))
+        set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
+        set_uniform(prog, "u_seed", int(frame.seed) & 0xFFFFFFFF)
+        set_uniform(prog, "u_reset", 0 if (self.history_valid and not frame.camera_cut) else 1)
+        for k in ("temporal", "spatial", "bias_mode", "max_bounces", "rr_start"):
+            set_uniform(prog, "u_" + k, int(self[k]))
+        for k in ("radius", "m_cap", "jacobian_max"):
+            set_uniform(prog, "u_" + k, float(self[k]))
+        unit = 1
+        for uni, name in _TEX:
+            res[name].use(unit)
+            set_uniform(prog, uni, unit)
+            unit += 1
+        in_units = {}
+        for uni in _IN:
+            in_units[uni] = unit
+            set_uniform(prog, uni, unit)
+            unit += 1
+
+        def inputs(names):
+            for uni, name in zip(_IN, names):
+                res[name].use(in_units[uni])
+
+        gx, gy = rc.groups(8)
+        barrier = 0x0008 | 0x0020  # TEXTURE_FETCH | SHADER_IMAGE_ACCESS: the next stage fetches
+        # stage 0: fresh sample + temporal reuse -> tmp
+        set_uniform(prog, "u_stage", 0)
+        inputs([n + "@prev" for n in HISTORY])
+        for b, name in enumerate(TMP):
+            res[name].bind_to_image(b, read=b == 0, write=True)
+        rc.dispatch(prog, gx, gy)
+        rc.ctx.memory_barrier(barrier)
+        # stage 1: spatial reuse -> final reservoirs (history)
+        set_uniform(prog, "u_stage", 1)
+        inputs(TMP + ("restir_gi.vpos@prev", "restir_gi.vnrm@prev"))  # vpos/vnrm unused here
+        for b, name in enumerate(HISTORY):
+            res[name].bind_to_image(b, read=b == 0, write=True)
+        rc.dispatch(prog, gx, gy)
+        rc.ctx.memory_barrier(barrier)
+        # stage 2: shading, effect images, debug views
+        set_uniform(prog, "u_stage", 2)
+        inputs(HISTORY)
+        for b, name in enumerate((COLOR, AOV_DIFFUSE, AOV_GLOSSY, VIEW_W, VIEW_M)):
+            res[name].bind_to_image(b, read=b == 0, write=True)
+        rc.dispatch(prog, gx, gy)
