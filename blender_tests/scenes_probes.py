@@ -6,6 +6,18 @@
 * ``furnace``: a white-furnace-like case: a diffuse sphere (albedo 0.8) on a diffuse floor
   (albedo 0.8) under a uniform white world (radiance 1), no lamp. What the probes add is the
   light bounced between the sphere and the floor; the rest is DIRECT's world light.
+* ``furnace_room``: the closed white furnace: a closed room (4 x 4 x 3 m) whose every wall is
+  diffuse with albedo 0.8 *and* emits radiance 1 (white), no lamp. The exact answer is the
+  same radiance everywhere, Le / (1 - albedo) = 5 (Cycles "full" stops after its bounce limit:
+  slightly less); DIRECT gives the emission seen (1) and one bounce of it (0.8), the probes
+  must carry the rest (3.2: 64 % of the image).
+* ``probe_in_box``: a room (4 x 4 x 3 m, one lamp) with a solid 1.6 m cube in the middle
+  whose inside holds probes of every automatic grid the tests use (stability: a probe inside
+  geometry; RTXGI relocates it or makes it inactive).
+* ``glossy_room``: a room open towards the camera with a glossy metal floor (roughness 0.2),
+  coloured diffuse walls and a wall behind the camera (off screen), one lamp: SSR finds the
+  far walls on screen; the reflections of the walls behind the camera and of what leaves the
+  screen need the miss fallback (RTXGI's probe glossy light, technique RTXGI_SSR).
 * ``two_rooms``: two rooms side by side in one closed shell, split by a thin wall (2 cm,
   a closed box, no door); a bright lamp in room A, a dim one in room B; the camera in room B
   looks at the wall. Cycles shows room B lit by its dim lamp only: anything more is light
@@ -17,7 +29,7 @@ from __future__ import annotations
 
 import bpy
 
-SCENES = ("white_room", "furnace", "two_rooms")
+SCENES = ("white_room", "furnace", "furnace_room", "two_rooms", "probe_in_box", "glossy_room")
 
 
 def _helpers():
@@ -41,6 +53,37 @@ def _furnace(b, mp, mw):
     b.scene.world = mw(b.n("world"), (1.0, 1.0, 1.0), 1.0)
 
 
+def _furnace_room(b, mp, mw):
+    glow = mp(b.n("glow"), (0.8, 0.8, 0.8), 1.0, specular=0.0, emission=(1.0, 1.0, 1.0), emission_strength=1.0)
+    b.room("room", (-2, -2, 0), (2, 2, 3), {k: glow for k in ("floor", "ceiling", "-x", "+x", "-y", "+y")})
+    b.camera((0, -1.9, 1.5), (0, 1.0, 1.0), lens=24.0)
+    b.scene.world = mw(b.n("world"), (0, 0, 0), 0.0)
+
+
+def _probe_in_box(b, mp, mw):
+    white = mp(b.n("white"), (0.8, 0.8, 0.8), 1.0, specular=0.0)
+    red = mp(b.n("red"), (0.7, 0.1, 0.08), 1.0, specular=0.0)
+    b.room("room", (-2, -2, 0), (2, 2, 3), {k: white for k in ("floor", "ceiling", "-x", "+x", "-y", "+y")})
+    b.box("block", (1.6, 1.6, 1.6), red, location=(0.0, 0.3, 1.0))
+    b.light("lamp", "POINT", (1.2, -1.0, 2.6), energy=300.0, shadow_soft_size=0.0)
+    b.camera((0, -1.9, 1.5), (0, 1.0, 1.0), lens=24.0)
+    b.scene.world = mw(b.n("world"), (0, 0, 0), 0.0)
+
+
+def _glossy_room(b, mp, mw):
+    floor = mp(b.n("floor"), (0.9, 0.9, 0.9), 0.2, metallic=1.0)
+    white = mp(b.n("white"), (0.8, 0.8, 0.8), 1.0, specular=0.0)
+    red = mp(b.n("red"), (0.75, 0.1, 0.08), 1.0, specular=0.0)
+    green = mp(b.n("green"), (0.12, 0.6, 0.15), 1.0, specular=0.0)
+    blue = mp(b.n("blue"), (0.1, 0.2, 0.75), 1.0, specular=0.0)
+    b.room("room", (-1.5, -3, 0), (1.5, 3, 2.5),
+           {"floor": floor, "ceiling": white, "-x": red, "+x": green, "+y": white, "-y": blue})
+    b.box("block", (0.6, 0.6, 0.9), white, location=(0.4, 1.2, 0.45))
+    b.light("lamp", "POINT", (0.0, 0.5, 2.2), energy=300.0, shadow_soft_size=0.1)
+    b.camera((0, -2.6, 1.6), (0, 1.5, 0.4), lens=24.0)
+    b.scene.world = mw(b.n("world"), (0, 0, 0), 0.0)
+
+
 def _two_rooms(b, mp, mw):
     white = mp(b.n("white"), (0.8, 0.8, 0.8), 1.0, specular=0.0)
     # shell: x in [-4, 4], y in [-2, 2], z in [0, 3]; thin wall at x = 0
@@ -52,7 +95,8 @@ def _two_rooms(b, mp, mw):
     b.scene.world = mw(b.n("world"), (0, 0, 0), 0.0)
 
 
-_BUILD = {"white_room": _white_room, "furnace": _furnace, "two_rooms": _two_rooms}
+_BUILD = {"white_room": _white_room, "furnace": _furnace, "furnace_room": _furnace_room, "two_rooms": _two_rooms,
+          "probe_in_box": _probe_in_box, "glossy_room": _glossy_room}
 
 
 def build(name: str, resolution: int = 48) -> bpy.types.Scene:

@@ -131,6 +131,31 @@ vec3 probe_irradiance(vec3 P, vec3 N, vec3 V, out float wsum) {
     }
     return wsum > 0.0 ? sum / wsum : vec3(0.0);
 }
+
+// Closest probe sphere (radius `radius`, centred on the probe's relocated position) along the
+// ray o + t d (d unit) before t_max: the slot index, -1 none; n = the sphere's normal at the
+// hit, slot and state of the probe. Used by the debug views (gather.comp) and the viewport
+// overlay (overlay.comp). Loops over every probe: for volumes of a few thousand probes.
+int hit_probe(vec3 o, vec3 d, float t_max, float radius, out vec3 n, out ivec3 slot, out vec4 state) {
+    int best = -1;
+    float bt = t_max;
+    n = vec3(0.0, 0.0, 1.0);
+    slot = ivec3(0);
+    state = vec4(0.0);
+    for (int i = 0; i < probe_count(); ++i) {
+        ivec3 s = slot_from_index(i);
+        ivec3 a = cell_of_slot(s, u_probe_cell0);
+        vec4 st = probe_state(s);
+        vec3 c = cell_position(a) + st.xyz;
+        vec3 oc = o - c;
+        float b = dot(oc, d);
+        float disc = b * b - (dot(oc, oc) - radius * radius);
+        if (disc < 0.0) continue;
+        float t = -b - sqrt(disc);
+        if (t > 0.0 && t < bt) { bt = t; best = i; n = normalize(o + d * t - c); slot = s; state = st; }
+    }
+    return best;
+}
 #endif
 
 // Direction of ray r of a probe: the first u_fixed_rays are a fixed spherical Fibonacci set

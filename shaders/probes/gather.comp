@@ -4,6 +4,9 @@
 // PROBE_GLOSSY (RTXGI): glossy indirect from the probes in the reflection direction:
 // color += specular albedo x E(R) / pi (the irradiance field read with the mirror direction
 // as its normal: the radiance of a rough reflection, blurry for sharp ones).
+// PROBE_GLOSSY_OUT (RTXGI_SSR): also writes o_glossy = DIRECT's world reflection (u_world_spec)
+// + the probe glossy term just added: the whole glossy light already in colour, which SSR's
+// composite uses as its miss fallback and replaces by its own result.
 // Debug views (render passes): the irradiance field E/pi at surfaces with the probes drawn as
 // small spheres shaded by their own irradiance (GI_ProbeIrradiance), the probes coloured by
 // state over a grey image (GI_ProbeState: green active, red inactive, blue relocated), and the
@@ -24,27 +27,12 @@ layout(binding = 1, rgba32f) uniform writeonly image2D o_effect;
 layout(binding = 2, rgba32f) uniform writeonly image2D o_view_irr;
 layout(binding = 3, rgba32f) uniform writeonly image2D o_view_state;
 layout(binding = 4, rgba32f) uniform writeonly image2D o_view_atlas;
+#ifdef PROBE_GLOSSY_OUT
+layout(binding = 5, rgba32f) uniform writeonly image2D o_glossy;
+uniform sampler2D u_world_spec;
+#endif
 uniform float u_sphere_radius;
 uniform int u_debug;   // 1: write the debug views
-
-// Closest probe sphere along the camera ray before t_max: returns the slot index, -1 none.
-int hit_probe(vec3 o, vec3 d, float t_max, out vec3 n, out ivec3 slot, out vec4 state) {
-    int best = -1;
-    float bt = t_max;
-    for (int i = 0; i < probe_count(); ++i) {
-        ivec3 s = slot_from_index(i);
-        ivec3 a = cell_of_slot(s, u_probe_cell0);
-        vec4 st = probe_state(s);
-        vec3 c = cell_position(a) + st.xyz;
-        vec3 oc = o - c;
-        float b = dot(oc, d);
-        float disc = b * b - (dot(oc, oc) - u_sphere_radius * u_sphere_radius);
-        if (disc < 0.0) continue;
-        float t = -b - sqrt(disc);
-        if (t > 0.0 && t < bt) { bt = t; best = i; n = normalize(o + d * t - c); slot = s; state = st; }
-    }
-    return best;
-}
 
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
@@ -52,7 +40,7 @@ void main() {
     if (any(greaterThanEqual(px, size))) return;
     GPixel g = fetch_g(px);
     vec4 c = imageLoad(io_color, px);
-    vec3 add = vec3(0.0), field = vec3(0.0);
+    vec3 add = vec3(0.0), field = vec3(0.0), gloss = vec3(0.0);
     if (g.valid) {
         Surface s = fetch_surface(px, g.mid);
         vec3 V = view_dir(g.P);
@@ -68,10 +56,14 @@ void main() {
             vec3 R = reflect(-V, g.N);
             float wr;
             vec3 ER = probe_irradiance(g.P, R, V, wr);
-            add += ks * ER * INV_PI;
+            gloss = ks * ER * INV_PI;
+            add += gloss;
         }
 #endif
     }
+#ifdef PROBE_GLOSSY_OUT
+    imageStore(o_glossy, px, vec4(sanitize(texelFetch(u_world_spec, px, 0).rgb + gloss), 1.0));
+#endif
     vec3 total = sanitize(c.rgb + add);
     imageStore(io_color, px, vec4(total, c.a));
     imageStore(o_effect, px, vec4(total - c.rgb, 1.0));
@@ -85,7 +77,7 @@ void main() {
     vec3 n;
     ivec3 slot;
     vec4 st;
-    int hp = hit_probe(o, d, t_max, n, slot, st);
+    int hp = hit_probe(o, d, t_max, u_sphere_radius, n, slot, st);
     vec3 irr_view = field, state_view = vec3(luminance(total) * 0.25);
     if (hp >= 0) {
         irr_view = sample_probe_irradiance(slot, n) * INV_PI;

@@ -48,6 +48,8 @@ from .screen_space import Units, bind_frame, bind_gbuffer
 COLOR = "color"
 IRR, DIST, STATE = "probes.irradiance", "probes.distance", "probes.state"
 RAYS, CHANGE = "probes.rays", "probes.change"
+GLOSSY = "probes.glossy"    # glossy light in colour (world reflection + probe glossy): SSR's fallback
+WORLD_SPEC = "aov.world_spec"  # DIRECT's shadowed world reflection (techniques/direct.py)
 EFFECT = "probe_gather.effect"
 VIEW_IRR, VIEW_STATE, VIEW_ATLAS = "probes.view_irradiance", "probes.view_state", "probes.view_atlas"
 PREV = "@prev"
@@ -73,6 +75,7 @@ class VolumeConfig:
     glossy: bool = False        # RTXGI: glossy indirect from the probes
     measure_convergence: bool = False  # RTXGI: warm-up ends on low variability
     fixed_rays: int = 0         # RTXGI: fixed (unrotated) rays for relocation/classification
+    glossy_out: bool = False    # RTXGI_SSR: write GLOSSY (DIRECT's world reflection + probe glossy)
 
     def defines(self) -> dict:
         d = {}
@@ -85,6 +88,9 @@ class VolumeConfig:
         if self.glossy:
             d["PROBE_GLOSSY"] = 1
         return d
+
+    def gather_defines(self) -> dict:
+        return {**self.defines(), **({"PROBE_GLOSSY_OUT": 1} if self.glossy and self.glossy_out else {})}
 
 
 GRID_PARAMS = (
@@ -233,6 +239,39 @@ class ProbeVolume:
                 if d.history:
                     rc.clear_resource(d.name, d.clear)
                     rc.clear_resource(d.name + PREV, d.clear)
+
+
+def find_volume(graph) -> "ProbeVolume | None":
+    """The probe volume of a frame graph (None: not a probe technique)."""
+    for p in getattr(graph, "passes", ()):
+        if isinstance(p, ProbeTracePass):
+            return p.volume
+    return None
+
+
+def read_probes(rc, volume: "ProbeVolume") -> dict:
+    """Per-probe values for tests, benchmarks and the viewport overlay (GL thread; after the
+    graph's barriers). Returns ``positions`` (N, 3) world (relocation included), ``state``
+    (N,) 0 active / 1 inactive / -1 moved this frame, ``offset`` (N, 3), ``irradiance``
+    (N, 3) mean E over each tile's interior texels (all directions), ``irradiance_tiles``
+    (N, irr-2, irr-2, 3) the interior texels (octahedral layout, row = t.y - 1), ``irradiance_bordered``
+    (N, irr, irr, 3) the whole tiles (row = t.y), in slot order."""
+    rc.barrier_external([IRR, STATE])  # texture fetch + read-back after the passes' image stores
+    cx, cy, cz = (int(c) for c in volume.counts)
+    n, t = volume.probe_count, volume.irr_size
+
+    def read(name, comps):
+        tex = rc.resources[name]
+        w, h = tex.size
+        return np.frombuffer(tex.read(), np.float32).reshape(h, w, tex.components)[..., :comps].copy()
+
+    st = read(STATE, 4).reshape(n, 4)  # texel (s.x + cx*s.y, s.z): row-major = slot index
+    irr = read(IRR, 3).reshape(cz, t, cx * cy, t, 3).transpose(0, 2, 1, 3, 4).reshape(n, t, t, 3)
+    inner = irr[:, 1:t - 1, 1:t - 1]
+    return {"positions": volume.positions(st), "state": st[:, 3].copy(), "offset": st[:, :3].copy(),
+            "irradiance": inner.mean(axis=(1, 2)), "irradiance_tiles": inner, "irradiance_bordered": irr,
+            "spacing": volume.spacing.copy(),
+            "counts": volume.counts.copy()}
 
 
 def random_rotation(seed: int) -> np.ndarray:
@@ -460,11 +499,16 @@ class ProbeGatherPass(ProbePass):
         self.writes = (COLOR, EFFECT, VIEW_IRR, VIEW_STATE, VIEW_ATLAS)
         self.declared = (Res(EFFECT, check="radiance"), Res(VIEW_IRR, check="radiance"),
                          Res(VIEW_STATE, check="radiance"), Res(VIEW_ATLAS, check="radiance"))
+        self.glossy_out = volume.config.glossy and volume.config.glossy_out
+        if self.glossy_out:
+            self.reads += (WORLD_SPEC,)
+            self.writes += (GLOSSY,)
+            self.declared += (Res(GLOSSY, check="radiance"),)
         self.history_resets = frozenset()
 
     def execute(self, rc, frame):
         vol = self.volume
-        prog = rc.programs.compute("probes/gather.comp", vol.config.defines())
+        prog = rc.programs.compute("probes/gather.comp", vol.config.gather_defines())
         rc.scene.bind(prog)
         bind_frame(rc, prog, frame)
         vol.set_uniforms(prog)
@@ -481,6 +525,9 @@ class ProbeGatherPass(ProbePass):
         res[COLOR].bind_to_image(0, read=True, write=True)
         for unit, n in enumerate((EFFECT, VIEW_IRR, VIEW_STATE, VIEW_ATLAS), start=1):
             res[n].bind_to_image(unit, read=False, write=True)
+        if self.glossy_out:
+            units.tex(prog, "u_world_spec", res[WORLD_SPEC])
+            res[GLOSSY].bind_to_image(5, read=False, write=True)
         rc.dispatch(prog, *rc.groups(8))
         if not debug:
             for n in (VIEW_IRR, VIEW_STATE, VIEW_ATLAS):
