@@ -402,3 +402,54 @@ def test_ssr_miss_fallback_is_a_composite_argument():
         for k in ("ss_fb", "ss_fb_base"):
             session.release_session(k)
         bpy.data.scenes.remove(sc)
+
+
+def test_ssr_reflections_reproject_by_the_reflected_point():
+    """Under camera motion a reflection moves with the reflected point, not with the mirror
+    (issue 9 point 2): the camera dollies down the corridor, rendered viewport-style (one
+    frame per call, history kept); the reflective surfaces are compared with a fresh render
+    at the same camera (no history, no lag). SSR's temporal pass (reprojection by the
+    virtual image point, hit distance behind the mirror) lags less than reprojection by the
+    surface's motion (the code before). Measured here (48 px, frames 6-9): 0.068 vs 0.091
+    (ratio 0.75; deterministic); asserted <= 0.85x."""
+    from gi_preview.render import techniques
+    from gi_preview.render.passes.gbuffer import GBufferPass
+    from gi_preview.render.passes.shadows import ShadowPass
+    from gi_preview.render.techniques.direct import DirectLightPass
+    from gi_preview.render.techniques.ssr import SSR, ssr_passes
+
+    class SSRSurfaceMotion(SSR):
+        id = "SSR_SURFACE_MOTION_TEST"
+
+        def passes(self, quality):
+            return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality),
+                    *ssr_passes(quality, reproject_by_hit=False)]
+
+    sc = repro.build("corridor", 48)
+    techniques.REGISTRY[SSRSurfaceMotion.id] = SSRSurfaceMotion
+    keys = ("ss_mv_truth", "ss_mv_hit", "ss_mv_surf")
+    try:
+        sd = _export(sc)
+        mask = repro.masks("corridor", sd, repro.material_ids(sd))["reflective"]
+        errs = {"SSR": [], SSRSurfaceMotion.id: []}
+        for k in range(9):
+            moved = copy.deepcopy(sd)
+            m = moved.camera.matrix_world.astype(np.float64).copy()
+            m[:3, 3] += np.array([0.0, 0.08, 0.0]) * k
+            moved.camera.matrix_world = m.astype(moved.camera.matrix_world.dtype)
+            imgs = {t: session.render(moved, t, 1, 1, keep_history=True, session=key).image
+                    for t, key in zip(errs, keys[1:])}
+            if k >= 5:
+                truth = session.render(moved, "SSR", 1, 8, session=keys[0]).image
+                for t, img in imgs.items():
+                    assert np.isfinite(img).all()
+                    errs[t].append(metrics.relmse(img, truth, mask=mask))
+        e_hit, e_surf = (float(np.mean(v)) for v in errs.values())
+        print(f"reflection lag under motion (masked relMSE vs still render): by reflected point {e_hit:.4f}, "
+              f"by surface {e_surf:.4f}")
+        assert e_hit <= 0.85 * e_surf
+    finally:
+        techniques.REGISTRY.pop(SSRSurfaceMotion.id, None)
+        for k in keys:
+            session.release_session(k)
+        bpy.data.scenes.remove(sc)

@@ -9,7 +9,8 @@
 // direction, whose weight has the closed form G2 / G1(V) (D and the pdf cancel), so a
 // near-mirror degenerates gracefully to its own ray with the right weight: a neighbour's
 // direction lies outside a mirror's lobe (D ~ 0) and drops out. D is evaluated in a form
-// that does not overflow (ss_ggx_D, common.glsl). (Before: a mirror's pdf overflowed to
+// that does not overflow (ss_ggx_D, common.glsl). At a reduced trace scale only the pixel
+// the ray was traced from counts it as its own. (Before: a mirror's pdf overflowed to
 // inf, every weight was 0 or NaN, and the pixel fell back to its own ray unweighted.)
 // Hits carry the hit pixel's reflected direct light aov.direct (one bounce; the emission
 // of hit emitters is already in DIRECT's glossy term) times their confidence (edge and
@@ -76,6 +77,10 @@ void main() {
         vec4 r1 = texelFetch(u_ray1, qq, 0);
         vec3 L = r0.xyz;
         bool found = r1.z > 0.0;
+        // the closed-form weight holds only for a ray drawn from this pixel's own lobe; at a
+        // reduced trace scale the ray at qc was traced from another pixel (ssr_trace's
+        // mapping) unless that pixel is this one, and is weighted like a neighbour's
+        bool own = k == 0 && ivec2((vec2(qc) + 0.5) * u_resolution / vec2(rsize)) == px;
         vec3 Lhit = vec3(0.0);
         float conf = 0.0, hdist = 0.0;
         if (found) {
@@ -83,7 +88,7 @@ void main() {
             GPixel h = fetch_g(hp);
             vec3 d = h.P - g.P;
             hdist = length(d);
-            if (k > 0 && dot(d, d) > 1e-10) L = normalize(d);
+            if (!own && dot(d, d) > 1e-10) L = normalize(d);
             Lhit = texelFetch(u_radiance, hp, 0).rgb;
             conf = clamp(r1.z, 0.0, 1.0) * view_trust(h, hp, -L);
         }
@@ -91,7 +96,7 @@ void main() {
         if (NoL <= 0.0) continue;
         float G2 = ggx_V(NoV, NoL, a2) * 4.0 * NoV * NoL;
         float w;
-        if (k == 0) {
+        if (own) {
             w = G2 / ggx_G1(NoV, a2);                       // own ray: f cos / pdf in closed form
         } else {
             w = ss_ggx_D(N, normalize(V + L), a2) * G2 / (4.0 * NoV * r0.w);

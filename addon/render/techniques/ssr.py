@@ -27,7 +27,7 @@ See docs/techniques/SSR.md.
 | resolve_samples | 1–16 | neighbour rays reused per pixel |
 | scale | 0.25–1 | resolution scale of the trace |
 
-Quality ladder (steps, resolve, scale): 0 = 32, 4, 0.5; 1 = 64, 6, 1; 2 = 128, 8, 1; 3 = 256, 12, 1.
+Quality ladder (steps, resolve, scale): 0 = 32, 4, 1; 1 = 64, 6, 1; 2 = 128, 8, 1; 3 = 256, 12, 1.
 """
 from __future__ import annotations
 
@@ -55,7 +55,9 @@ class SSRTracePass(ScreenPass):
         Param("bias", 0.005, 0.0, 1.0, "ray origin offset along the geometric normal"),
         Param("scale", 1.0, 0.25, 1.0, "resolution scale of the trace"),
     )
-    quality_ladder = ({"steps": 32, "scale": 0.5}, {"steps": 64, "scale": 1.0},
+    # q0 traces at full resolution: at half resolution (measured, glossy_spheres 96 px) the
+    # reflections of the curved spheres lost detail (relMSE 0.0274 vs 0.0229), for ~1 ms
+    quality_ladder = ({"steps": 32, "scale": 1.0}, {"steps": 64, "scale": 1.0},
                       {"steps": 128, "scale": 1.0}, {"steps": 256, "scale": 1.0})
     reads = (ALBEDO, NORMAL, POSITION, GEONORMAL, HIZ)
     writes = (RAY0, RAY1)
