@@ -1,0 +1,420 @@
+"""Voxel cone tracing (Crassin, Neyret, Sainz, Green, Eisemann 2011), the passes of VXGI.
+
+* ``VoxelizePass`` (raster): the whole scene, every frame, into ``cascades`` grids of
+  ``resolution``³ voxels centred on the camera. Each cascade's voxels are twice the size
+  of the previous one's; the coarsest covers the scene's bounds, the finer ones are
+  centred on the camera and clamped into the scene's box; corners are snapped to 4 voxels
+  of their cascade (a camera move shifts a grid by whole voxels, and mip levels 0-2 keep
+  their cells). Conservative voxelisation by geometry-shader dominant-axis projection of
+  each triangle, enlarged by half a pixel (plus ``thickness`` voxels) per edge, then an
+  exact triangle/box overlap test for every voxel of the fragment's column
+  (``shaders/vxgi/voxelize.*``). Chosen over a compute voxeliser because llvmpipe's
+  rasteriser spreads the work of large triangles over its threads, where a thread per
+  triangle would leave one thread walking a whole wall. Each overlapping triangle adds its
+  diffuse albedo, normal (two-sided: a canonical orientation) and nearest plane point to
+  the voxel's record (``vxgi.voxels``, an SSBO, float atomics by compare-and-swap).
+* ``VoxelInjectPass`` (compute): per voxel, the averaged record → direct light from every
+  light in Cycles' units on both sides of the voxel's surface, shadowed by the shadow maps
+  (the shadow atlas; suns through their RSM view, which covers the whole scene while the
+  atlas' sun cascades cover only the camera's frustum), optionally plus last frame's
+  indirect irradiance and sky light gathered by six cones per side through the history
+  volume (``multi_bounce``). Writes level 0 of ``vxgi.radiance``: six directional volumes
+  (the radiance each voxel emits towards ±x, ±y, ±z: the surface side facing that way),
+  then builds the anisotropic mips (``shaders/vxgi/mip.comp``, front-to-back compositing of
+  the two children along each direction, as in the paper).
+* ``VoxelTracePass`` (compute): per pixel, six diffuse cones (weights integrating the
+  cosine lobe) and one specular cone (aperture from roughness) through the volume; adds
+  ``albedo_d·E/π + albedo_s·L_spec`` to DIRECT's colour; writes the effect AOVs and AO.
+* ``VoxelDebugPass``: the volume at mip ``mip`` as the camera sees it (GI_VXGI_Voxels).
+
+Radiometry: voxels hold outgoing radiance of Lambertian surfaces (W/m²/sr) from
+irradiance in Cycles' units; no gamma, no bounce scale. Emission is not voxelised: every
+emissive instance is a mesh light that lights the voxels, and DIRECT draws the emitters.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..framegraph import (BUFFER, BUFFER_UPDATE_BARRIER_BIT, CAMERA_CUT, HOST, PARAM_CHANGE,
+                          SHADER_IMAGE_ACCESS_BARRIER_BIT, TEX3D, TEXTURE_FETCH_BARRIER_BIT,
+                          TEXTURE_UPDATE_BARRIER_BIT, Effect, Param, Pass, Res)
+from ..gpu_scene import set_uniform
+from .gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION
+from .rsm import RSM_POS, RSM_VIEWS, LightGatedGraph, MAX_RSM_VIEWS, shadow_lights
+from .screen_space import COLOR, Units, bind_frame, bind_gbuffer, camera_vectors
+from .shadows import ATLAS, VIEWS
+
+VOXELS, GRID, RADIANCE = "vxgi.voxels", "vxgi.grid", "vxgi.radiance"
+DIFFUSE, GLOSSY, AO, DEBUG = "vxgi.diffuse", "vxgi.glossy", "vxgi.ao", "vxgi.debug"
+VX_REC = 10  # words per voxel record (shaders/vxgi/common.glsl)
+MAX_CASCADES = 4
+BINDING_RECORDS = 5
+BINDING_LIST = 4
+GI = frozenset({Effect.INDIRECT_DIFFUSE, Effect.INDIRECT_SPECULAR, Effect.AO})
+
+
+def mip_levels(n: int) -> int:
+    """Mip levels usable inside one cascade: halvings while n stays divisible by 2."""
+    levels = 1
+    while n % 2 == 0 and n > 1:
+        n //= 2
+        levels += 1
+    return levels
+
+
+class VoxelGrid:
+    """Host resource: this frame's cascades, (corner, voxel size) each, finest first."""
+
+    def __init__(self, origins=(), n: int = 0):
+        self.origins, self.n = list(origins), int(n)
+
+    @property
+    def cascades(self) -> int:
+        return len(self.origins)
+
+    @property
+    def levels(self) -> int:
+        return mip_levels(self.n)
+
+    def release(self):
+        pass
+
+    def array(self) -> np.ndarray:
+        arr = np.zeros((MAX_CASCADES, 4), np.float32)
+        for i, (o, vs) in enumerate(self.origins):
+            arr[i, :3], arr[i, 3] = o, vs
+        return arr
+
+    def uniforms(self, prog, origin_uniform: str = "u_vx_origin"):
+        if origin_uniform in prog:
+            prog[origin_uniform].write(self.array().tobytes())
+        set_uniform(prog, "u_vx_n", self.n)
+        set_uniform(prog, "u_vx_cascades", self.cascades)
+        set_uniform(prog, "u_vx_levels", self.levels)
+
+    def extent(self) -> float:
+        """Side of the coarsest cascade (world units)."""
+        return self.n * self.origins[-1][1] if self.origins else 0.0
+
+
+def voxel_cascades(scene, frame, n: int, cascades: int, voxel_size: float, snap: int = 4):
+    """(corner, voxel size) per cascade, finest first (see the module docstring)."""
+    lo, hi = scene.world_bounds()
+    lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+    ext = float(np.max(hi - lo)) * 1.02 + 1e-3
+    # the coarsest holds the scene with a margin of a snap step on each side
+    coarse = voxel_size * 2 ** (cascades - 1) if voxel_size > 0 else ext / max(n - 2 * snap, 1)
+    cam, _ = camera_vectors(frame)
+    centre_scene = 0.5 * (lo + hi)
+    out = []
+    for c in range(cascades):
+        vs = coarse / 2 ** (cascades - 1 - c)
+        side = n * vs
+        if c == cascades - 1:
+            centre = centre_scene
+        else:
+            centre = np.empty(3)
+            for k in range(3):
+                a, b = lo[k] + 0.5 * side, hi[k] - 0.5 * side
+                centre[k] = np.clip(cam[k], a, b) if a <= b else centre_scene[k]
+        step = vs * snap
+        corner = np.floor((centre - 0.5 * side) / step) * step
+        out.append((corner.astype(np.float32), float(vs)))
+    return out
+
+
+class VXGIGraph(LightGatedGraph):
+    """LightGatedGraph (skips, with the reason, when no light casts shadows), except that
+    an emissive mesh is a light too: it lights the voxels through its shadow-atlas cube."""
+
+    def plan(self, needed, reasons=None):
+        sc = self._scene
+        if sc is not None and not shadow_lights(sc) and any(m.is_emissive for m in sc.materials):
+            from ..framegraph import FrameGraph
+
+            return FrameGraph.plan(self, needed, reasons)
+        return super().plan(needed, reasons)
+
+
+class VoxelizePass(Pass):
+    name = "vxgi_voxelize"
+    kind = "raster"
+    provides = GI
+    writes = (VOXELS, GRID)
+    declared = (Res(VOXELS, kind=BUFFER, managed=False, check="none"),
+                Res(GRID, kind=HOST, managed=False, check="none"))
+    write_access = {VOXELS: "storage"}
+    history_resets = frozenset()
+    params = (
+        Param("resolution", 64, 8, 256, "voxels per side of one cascade (a multiple of 8 keeps 4 mip levels)"),
+        Param("cascades", 2, 1, MAX_CASCADES, "cascades centred on the camera (voxel size doubles)"),
+        Param("voxel_size", 0.0, 0.0, 100.0, "finest voxel size (0 = the coarsest cascade holds the scene)"),
+        Param("thickness", 0.0, 0.0, 2.0, "voxelisation dilation in voxels (thicker walls against leaks)"),
+    )
+    quality_ladder = ({"resolution": 32}, {"resolution": 48}, {"resolution": 64}, {"resolution": 96})
+
+    def __init__(self, quality=None, **props):
+        super().__init__(quality, **props)
+        self.buf = self.list = None
+        self.fbo = None
+        self.grid = VoxelGrid()
+
+    def _ensure(self, rc, n: int, cascades: int):
+        size = n * n * n * cascades * VX_REC * 4
+        if self.buf is None or self.buf.size != size:
+            for o in (self.buf, self.list):
+                if o is not None:
+                    o.release()
+            self.buf = rc.ctx.buffer(reserve=size)
+            self.buf.clear()  # the injection clears the records it reads; this is the start
+            self.list = rc.ctx.buffer(reserve=4 * (1 + n * n * n * cascades))
+        if self.fbo is None or tuple(self.fbo.size) != (n, n):
+            if self.fbo is not None:
+                self.fbo.release()
+            self.fbo = rc.empty_framebuffer((n, n))
+
+    def execute(self, rc, frame):
+        import moderngl
+
+        n, C = int(self["resolution"]), int(self["cascades"])
+        self._ensure(rc, n, C)
+        self.grid = VoxelGrid(voxel_cascades(rc.scene.scene, frame, n, C, float(self["voxel_size"])), n)
+        rc.resources[VOXELS] = self.buf
+        rc.resources[GRID] = self.grid
+        prog = rc.programs.program("vxgi/voxelize.vert", "vxgi/voxelize.frag", geometry="vxgi/voxelize.geom")
+        rc.scene.bind(prog)
+        self.grid.uniforms(prog)
+        set_uniform(prog, "u_thickness", float(self["thickness"]))
+        # the list of occupied voxels starts empty (after last frame's shader reads of it)
+        rc.ctx.memory_barrier(BUFFER_UPDATE_BARRIER_BIT)
+        self.list.write(np.zeros(1, np.uint32).tobytes())
+        self.buf.bind_to_storage_buffer(BINDING_RECORDS)
+        self.list.bind_to_storage_buffer(BINDING_LIST)
+        ctx = rc.ctx
+        self.fbo.use()
+        ctx.viewport = (0, 0, n, n)
+        ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
+        for c in range(C):
+            set_uniform(prog, "u_cascade", c)
+            rc.scene.draw(prog)
+
+    def release(self):
+        for o in (self.buf, self.list, self.fbo):
+            if o is not None:
+                o.release()
+        self.buf = self.list = self.fbo = None
+
+
+def radiance_decl(n: int, cascades: int) -> Res:
+    return Res(RADIANCE, kind=TEX3D, components=4, dtype="f2", size=(n, n, n * cascades * 6),
+               levels=mip_levels(n), filter_linear=True, history=True, check="radiance")
+
+
+CONE_PARAMS = (
+    Param("step", 0.5, 0.1, 2.0, "cone step, fraction of the cone diameter"),
+    Param("normal_offset", 1.5, 0.0, 4.0, "cones start this many voxels off the surface"),
+    Param("max_distance", 0.0, 0.0, 1e4, "cone length (0 = the coarsest cascade's side)"),
+    Param("opacity_scale", 1.0, 1.0, 4.0, "opacity bias: voxel opacity x this (against leaks)"),
+    Param("side_angle", 60.0, 20.0, 70.0, "angle of the five side cones from the normal (degrees)"),
+)
+
+
+class VoxelInjectPass(Pass):
+    name = "vxgi_inject"
+    provides = GI
+    reads = (VOXELS, GRID, RSM_POS, RSM_VIEWS, RADIANCE + "@prev")
+    optional_reads = (ATLAS, VIEWS)
+    writes = (RADIANCE,)
+    history_resets = frozenset({CAMERA_CUT, PARAM_CHANGE})
+    params = CONE_PARAMS + (
+        Param("multi_bounce", True, doc="inject last frame's indirect irradiance (and sky light) into the voxels"),
+        Param("shadow_offset", 0.5, 0.0, 4.0, "shadow lookups start this many voxels off the voxel's surface"),
+        Param("mesh_exact_max", 64, 0, 256, "emissive meshes up to this many triangles are integrated exactly"),
+        Param("directional_opacity", False, doc="level-0 opacity towards each direction = the surface's "
+              "projected coverage |n.D| (else 1: opaque from every side)"),
+    )
+    # the voxels' own gather (multi-bounce, sky) steps a whole cone diameter: it runs for
+    # every occupied voxel, and later bounces carry less of the image
+    quality_ladder = ({"step": 1.0}, {"step": 1.0}, {"step": 1.0}, {"step": 1.0})
+
+    def __init__(self, quality=None, *, voxelize: VoxelizePass, **props):
+        super().__init__(quality, **props)
+        self.voxelize = voxelize
+        self.prev_grid = None
+        self.zeros = None  # a zero-filled buffer of level 0's size: clears it by a texture upload
+
+    def resources(self):
+        v = self.voxelize
+        return (radiance_decl(int(v["resolution"]), int(v["cascades"])),)
+
+    def reset_history(self):
+        super().reset_history()
+        self.prev_grid = None
+
+    def execute(self, rc, frame):
+        res = rc.resources
+        grid: VoxelGrid = res[GRID]
+        scene = rc.scene.scene
+        n, C = grid.n, grid.cascades
+        prog = rc.programs.compute("vxgi/inject.comp")
+        rc.scene.bind(prog)
+        units = Units(1)
+        prev = self.prev_grid if (self.history_valid and self.prev_grid is not None
+                                  and self.prev_grid.n == n and self.prev_grid.cascades == C) else None
+        (prev or grid).uniforms(prog)
+        if "u_cur_origin" in prog:
+            prog["u_cur_origin"].write(grid.array().tobytes())
+        units.tex(prog, "u_vx_radiance", res[RADIANCE + "@prev"])
+        if ATLAS in res and VIEWS in res:
+            res[ATLAS].use(units.next)
+            set_uniform(prog, "u_shadow_atlas", units.next)
+            units.next += 1
+            res[VIEWS].bind_to_storage_buffer(3)
+        views = res[RSM_VIEWS]
+        units.tex(prog, "u_rsm_pos", res[RSM_POS])
+        views.uniforms(prog, res[RSM_POS].size)
+        li = np.full(MAX_RSM_VIEWS, -1, np.int32)
+        for i, v in enumerate(views.views[:MAX_RSM_VIEWS]):
+            li[i] = int(v["light"])
+        if "u_rsm_light" in prog:
+            prog["u_rsm_light"].write(li.tobytes())
+        world = np.asarray(scene.world.color if scene.world is not None else (0, 0, 0), np.float64)
+        bounce = bool(self["multi_bounce"]) and prev is not None
+        world_on = float(world.max()) > 0.0 and prev is not None
+        set_uniform(prog, "u_bounce", 1 if bounce else 0)
+        set_uniform(prog, "u_gather", 1 if (bounce or world_on) else 0)
+        set_uniform(prog, "u_world", tuple(float(x) for x in world))
+        set_uniform(prog, "u_vx_opacity_scale", float(self["opacity_scale"]))
+        set_uniform(prog, "u_shadow_offset", float(self["shadow_offset"]))
+        set_uniform(prog, "u_normal_offset", float(self["normal_offset"]))
+        set_uniform(prog, "u_step", float(self["step"]))
+        md = float(self["max_distance"])
+        set_uniform(prog, "u_max_distance", md if md > 0 else float((prev or grid).extent()))
+        set_uniform(prog, "u_mesh_exact_max", int(self["mesh_exact_max"]))
+        set_uniform(prog, "u_directional_opacity", 1 if self["directional_opacity"] else 0)
+        set_uniform(prog, "u_vx_side_angle", float(np.radians(self["side_angle"])))
+        set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
+        res[VOXELS].bind_to_storage_buffer(BINDING_RECORDS)
+        self.voxelize.list.bind_to_storage_buffer(BINDING_LIST)
+        tex = res[RADIANCE]
+        # clear level 0 (what was stored in it two frames ago), then write the occupied voxels
+        nbytes = n * n * n * C * 6 * 8
+        if self.zeros is None or self.zeros.size != nbytes:
+            if self.zeros is not None:
+                self.zeros.release()
+            self.zeros = rc.ctx.buffer(reserve=nbytes)
+            self.zeros.clear()
+        rc.ctx.memory_barrier(TEXTURE_UPDATE_BARRIER_BIT)
+        tex.write(self.zeros)
+        tex.bind_to_image(0, read=False, write=True, level=0)
+        rc.dispatch(prog, (n * n * n * C + 255) // 256)
+        self.prev_grid = grid
+        self.history_valid = True
+
+    def release(self):
+        if self.zeros is not None:
+            self.zeros.release()
+            self.zeros = None
+
+
+class VoxelMipPass(Pass):
+    """The anisotropic mips of ``vxgi.radiance`` (shaders/vxgi/mip.comp), level by level;
+    each level reads the one below, which the previous dispatch stored (own barriers)."""
+
+    name = "vxgi_mips"
+    provides = GI
+    reads = (RADIANCE, GRID)
+    writes = (RADIANCE,)
+    history_resets = frozenset()
+
+    def execute(self, rc, frame):
+        grid: VoxelGrid = rc.resources[GRID]
+        tex = rc.resources[RADIANCE]
+        n, C = grid.n, grid.cascades
+        mip = rc.programs.compute("vxgi/mip.comp")
+        set_uniform(mip, "u_cascades", C)
+        for k in range(grid.levels - 1):
+            if k > 0:
+                rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT | TEXTURE_FETCH_BARRIER_BIT)
+            nd = n >> (k + 1)
+            tex.bind_to_image(0, read=False, write=True, level=k + 1)
+            tex.bind_to_image(1, read=True, write=False, level=k)
+            set_uniform(mip, "u_n_dst", nd)
+            rc.dispatch(mip, (nd + 3) // 4, (nd + 3) // 4, (nd * 6 * C + 3) // 4)
+
+
+class VoxelTracePass(Pass):
+    name = "vxgi_trace"
+    provides = GI
+    reads = (RADIANCE, GRID, COLOR, ALBEDO, NORMAL, POSITION, GEONORMAL)
+    writes = (COLOR, DIFFUSE, GLOSSY, AO)
+    declared = (Res(DIFFUSE, check="radiance"), Res(GLOSSY, check="radiance"), Res(AO, check="radiance"))
+    history_resets = frozenset()
+    params = CONE_PARAMS + (
+        Param("specular", True, doc="trace the specular cone (indirect glossy)"),
+        Param("min_aperture", 0.05, 0.005, 0.577, "smallest tan(half aperture) of the specular cone"),
+    )
+
+    def __init__(self, quality=None, *, inject: VoxelInjectPass, **props):
+        super().__init__(quality, **props)
+        self.inject = inject
+
+    def execute(self, rc, frame):
+        res = rc.resources
+        prog = rc.programs.compute("vxgi/trace.comp")
+        rc.scene.bind(prog)
+        bind_frame(rc, prog, frame)
+        units = Units(1)
+        bind_gbuffer(rc, prog, units)
+        grid: VoxelGrid = res[GRID]
+        grid.uniforms(prog)
+        units.tex(prog, "u_vx_radiance", res[RADIANCE])
+        set_uniform(prog, "u_vx_opacity_scale", float(self["opacity_scale"]))
+        set_uniform(prog, "u_normal_offset", float(self["normal_offset"]))
+        set_uniform(prog, "u_step", float(self["step"]))
+        md = float(self["max_distance"])
+        set_uniform(prog, "u_max_distance", md if md > 0 else float(grid.extent()))
+        set_uniform(prog, "u_min_tan", float(self["min_aperture"]))
+        set_uniform(prog, "u_vx_side_angle", float(np.radians(self["side_angle"])))
+        set_uniform(prog, "u_specular", 1 if self["specular"] else 0)
+        res[COLOR].bind_to_image(0, read=True, write=True)
+        res[DIFFUSE].bind_to_image(1, read=False, write=True)
+        res[GLOSSY].bind_to_image(2, read=False, write=True)
+        res[AO].bind_to_image(3, read=False, write=True)
+        rc.dispatch(prog, *rc.groups(8))
+
+
+class VoxelDebugPass(Pass):
+    """GI_VXGI_Voxels: the radiance volume at mip ``mip`` ray-marched from the camera."""
+
+    name = "vxgi_debug"
+    provides = GI
+    reads = (RADIANCE, GRID)
+    writes = (DEBUG,)
+    declared = (Res(DEBUG, check="radiance"),)
+    history_resets = frozenset()
+    params = (Param("mip", 0, 0, 8, "mip level shown by GI_VXGI_Voxels"),)
+
+    def execute(self, rc, frame):
+        res = rc.resources
+        prog = rc.programs.compute("vxgi/debug.comp")
+        grid: VoxelGrid = res[GRID]
+        grid.uniforms(prog)
+        units = Units(1)
+        units.tex(prog, "u_vx_radiance", res[RADIANCE])
+        set_uniform(prog, "u_vx_opacity_scale", 1.0)
+        set_uniform(prog, "u_mip", float(min(int(self["mip"]), grid.levels - 1)))
+        vp = np.asarray(frame.proj, np.float64) @ np.asarray(frame.view, np.float64)
+        set_uniform(prog, "u_inv_view_proj", np.linalg.inv(vp).astype(np.float32))
+        cam, _ = camera_vectors(frame)
+        set_uniform(prog, "u_camera_pos", tuple(float(x) for x in cam))
+        c = rc.scene.scene.camera
+        set_uniform(prog, "u_ortho", 1 if c is not None and c.type == "ORTHO" else 0)
+        res[DEBUG].bind_to_image(0, read=False, write=True)
+        rc.dispatch(prog, *rc.groups(8))
+
+
+__all__ = ["VoxelizePass", "VoxelInjectPass", "VoxelMipPass", "VoxelTracePass", "VoxelDebugPass", "VXGIGraph", "VoxelGrid",
+           "voxel_cascades", "mip_levels", "math"]

@@ -1,0 +1,77 @@
+"""VXGI: voxel cone tracing (Crassin et al. 2011), indirect diffuse, glossy and AO added to DIRECT.
+
+Passes: DIRECT's (gbuffer, light_cull, shadows, direct_light) → ``rsm`` (passes/rsm.py: the
+suns' shadow maps over the whole scene) → ``vxgi_voxelize`` (conservative, every frame,
+cascades centred on the camera) → ``vxgi_inject`` (direct light from the shadow maps,
+optional multi-bounce from last frame's volume; anisotropic mips) → ``vxgi_trace`` (6
+diffuse cones + 1 specular cone per pixel, composited into the colour) → ``vxgi_debug``
+(GI_VXGI_Voxels). Compared with Cycles "full" (multi-bounce on). See passes/vxgi.py and
+docs/techniques/VXGI.md.
+
+| parameter | pass | range | meaning |
+|---|---|---|---|
+| resolution | vxgi_voxelize | 8–256 | voxels per side of one cascade |
+| cascades | vxgi_voxelize | 1–4 | cascades (voxel size doubles) |
+| voxel_size | vxgi_voxelize | 0–100 | finest voxel size (0: the coarsest cascade holds the scene) |
+| thickness | vxgi_voxelize | 0–2 | dilation in voxels (thicker voxelisation, against leaks) |
+| multi_bounce | vxgi_inject | bool | inject last frame's indirect irradiance and sky light |
+| step | inject, trace | 0.1–2 | cone step, fraction of the cone diameter |
+| normal_offset | inject, trace | 0–4 | cones start this many voxels off the surface |
+| opacity_scale | inject, trace | 1–4 | opacity bias (against leaks) |
+| max_distance | inject, trace | 0–1e4 | cone length (0: the coarsest cascade's side) |
+| specular, min_aperture | vxgi_trace | | the specular cone and its narrowest aperture |
+| mip | vxgi_debug | 0–8 | mip level shown by GI_VXGI_Voxels |
+
+Quality ladder (voxels per side, 2 cascades; warm-up frames): 0 = 32³ (4); 1 = 64³ (6);
+2 = 96³ (8); 3 = 128³ (8).
+"""
+from __future__ import annotations
+
+import os
+
+from ..passes.gbuffer import GBufferPass
+from ..passes.light_cull import LightCullPass
+from ..passes.rsm import RSMPass
+from ..passes.shadows import ShadowPass
+from ..passes.vxgi import (AO, DEBUG, DIFFUSE, GLOSSY, VoxelDebugPass, VoxelInjectPass, VoxelizePass, VoxelMipPass,
+                           VoxelTracePass, VXGIGraph)
+from . import Technique, register
+from .direct import DIRECT_OUTPUTS, DirectLightPass
+
+WARMUP = (4, 6, 8, 8)
+
+
+def vxgi_passes(quality) -> list:
+    vox = VoxelizePass(quality)
+    inject = VoxelInjectPass(quality, voxelize=vox)
+    return [vox, inject, VoxelMipPass(quality), VoxelTracePass(quality, inject=inject), VoxelDebugPass(quality)]
+
+
+class VXGI(Technique):
+    id = "VXGI"
+    label = "VXGI"
+    description = ("Voxel cone tracing: the scene voxelised every frame, lit from the shadow maps, "
+                   "6 diffuse + 1 specular cone per pixel, added to DIRECT")
+    family = "raster3d"
+    reference = "full"
+    cost_rank = 30
+    converges = True
+    warmup_frames = WARMUP[1]
+    outputs = {**DIRECT_OUTPUTS, "GI_IndirectDiffuse": DIFFUSE, "GI_IndirectGlossy": GLOSSY, "GI_AO": AO,
+               "GI_VXGI_Voxels": DEBUG}
+
+    def passes(self, quality):
+        return [GBufferPass(quality), LightCullPass(quality), ShadowPass(quality), DirectLightPass(quality),
+                RSMPass(quality), *vxgi_passes(quality)]
+
+    def build(self, quality):
+        g = VXGIGraph(self.passes(quality))
+        q = max(0, min(int(quality), len(WARMUP) - 1))
+        for p in g.passes:
+            if p.name == "vxgi_inject":
+                p.warmup_frames = WARMUP[q]  # multi-bounce: one bounce more per frame
+        return g
+
+
+if os.environ.get("GI_PREVIEW_VXGI_DEV") == "1":
+    register(VXGI)

@@ -1,0 +1,155 @@
+// vxgi/common.glsl — the voxel grid of VXGI (addon/render/passes/vxgi.py): cascades of
+// N^3 voxels centred on the camera, stacked along z in one 3D texture N x N x (N * C), and
+// cone tracing through its isotropic mips (Crassin et al. 2011).
+//
+// Anisotropic radiance volume: six directional volumes (the light a voxel emits towards +x,
+// -x, +y, -y, +z, -z), each with C cascades, stacked along z as slabs of N texels: slab
+// (face * C + cascade). Texel: rgb = opacity * radiance (premultiplied, W/m^2/sr), a =
+// opacity. Level 0: opacity 1 where a triangle overlaps the voxel, radiance of the surface
+// side facing that direction. Mips (vxgi_mip.comp): per direction, the 2 children along
+// the axis composited front to back as seen from that direction, the 4 pairs averaged
+// (Crassin et al. 2011); N is divisible by 2^(u_vx_levels - 1), so a mip never mixes two
+// slabs. Sampling clamps z inside the slab at the mip used.
+// Requires common.glsl.
+#ifndef GI_VXGI_COMMON_GLSL
+#define GI_VXGI_COMMON_GLSL
+
+#define VX_MAX_CASCADES 4
+#ifndef VX_BINDING_RECORDS
+#define VX_BINDING_RECORDS 5
+#endif
+#ifndef VX_BINDING_LIST
+#define VX_BINDING_LIST 4
+#endif
+// the occupied voxels of this frame: [0] = count, [1 + i] = flat index (z * N * N + y * N + x,
+// z counting the cascades' slabs)
+// one voxel record: diffuse albedo sum rgb, fragment count (uint), normal sum xyz, sum of
+// the surface points nearest the voxel centre (voxel units, relative to the voxel's corner)
+#define VX_REC 10
+
+uniform int u_vx_n;                          // voxels per side of one cascade
+uniform int u_vx_cascades;                   // cascades (cell size doubles)
+uniform int u_vx_levels;                     // mip levels usable inside a cascade
+uniform vec4 u_vx_origin[VX_MAX_CASCADES];   // xyz corner (world), w = voxel size
+
+// Finest cascade whose box, shrunk by `margin` voxels, contains p; -1 if none.
+int vx_cascade_of(vec3 p, float margin) {
+    for (int c = 0; c < u_vx_cascades; ++c) {
+        vec4 o = u_vx_origin[c];
+        vec3 g = (p - o.xyz) / o.w;
+        if (all(greaterThanEqual(g, vec3(margin))) && all(lessThanEqual(g, vec3(float(u_vx_n) - margin))))
+            return c;
+    }
+    return -1;
+}
+
+// Voxel size at p (finest cascade holding it; the coarsest's outside every cascade).
+float vx_voxel_size_at(vec3 p) {
+    int c = vx_cascade_of(p, 0.0);
+    return u_vx_origin[c < 0 ? u_vx_cascades - 1 : c].w;
+}
+
+#ifdef VX_SAMPLING
+uniform sampler3D u_vx_radiance;
+uniform float u_vx_opacity_scale;  // opacity bias (>= 1 thickens occluders, against leaks)
+
+// Radiance volume at p filtered over a footprint `diam` (world units), as seen by a cone
+// travelling along d (the light emitted towards -d): the three directional volumes facing
+// the cone, weighted by d^2. Cascade: the finest containing p whose voxels are at most
+// `diam` (mip = log2(diam / voxel)). Returns the premultiplied sample; `width` = the filter
+// width used (opacity correction), 0 when p is outside every cascade.
+vec4 vx_sample(vec3 p, float diam, vec3 d, out float width) {
+    width = 0.0;
+    float n = float(u_vx_n);
+    float max_lod = float(u_vx_levels - 1);
+    float slabs = float(6 * u_vx_cascades);
+    for (int c = 0; c < u_vx_cascades; ++c) {
+        vec4 o = u_vx_origin[c];
+        float lod = log2(max(diam / o.w, 1.0));
+        if (lod > max_lod && c < u_vx_cascades - 1) continue;  // a coarser cascade filters wider
+        lod = min(lod, max_lod);
+        vec3 l = (p - o.xyz) / (o.w * n);
+        if (any(lessThan(l, vec3(0.0))) || any(greaterThan(l, vec3(1.0)))) continue;
+        float h = 0.5 * exp2(ceil(lod)) / n;  // half a texel of the coarser of the two mips
+        l.z = clamp(l.z, h, 1.0 - h);
+        width = o.w * exp2(lod);
+        vec3 w = d * d;
+        // face f holds the light emitted towards +axis (f even) or -axis (f odd)
+        ivec3 f = ivec3(d.x > 0.0 ? 1 : 0, d.y > 0.0 ? 3 : 2, d.z > 0.0 ? 5 : 4);
+        vec4 r = vec4(0.0);
+        for (int k = 0; k < 3; ++k) {
+            if (w[k] < 1e-4) continue;
+            float slab = float(f[k] * u_vx_cascades + c);
+            r += w[k] * textureLod(u_vx_radiance, vec3(l.xy, (slab + l.z) / slabs), lod);
+        }
+        return r;
+    }
+    return vec4(0.0);
+}
+
+// Front-to-back cone march from o along unit d with tan(half aperture) `tan_half`, from t0
+// to at most t1. Steps of `step_scale` x the cone diameter (at least the local voxel size
+// times step_scale); each sample's opacity is biased by u_vx_opacity_scale and corrected
+// for the step length (1 - (1-a)^(s/w)). Returns (radiance arriving along the cone, opacity).
+vec4 vx_cone(vec3 o, vec3 d, float tan_half, float t0, float t1, float step_scale) {
+    vec3 col = vec3(0.0);
+    float a = 0.0;
+    float t = t0;
+    for (int i = 0; i < 256 && t < t1 && a < 0.995; ++i) {
+        vec3 p = o + t * d;
+        float vs = vx_voxel_size_at(p);
+        float diam = max(2.0 * tan_half * t, vs);
+        float w;
+        vec4 s = vx_sample(p, diam, d, w);
+        if (w <= 0.0) break;  // left every cascade
+        float step = diam * step_scale;
+        if (s.a > 1e-5) {
+            float as = clamp(s.a * u_vx_opacity_scale, 0.0, 0.9999);
+            float ac = 1.0 - pow(1.0 - as, min(step / w, 4.0));
+            vec3 L = s.rgb / s.a;  // the sample's radiance (un-premultiplied)
+            col += (1.0 - a) * ac * L;
+            a += (1.0 - a) * ac;
+        }
+        t += step;
+    }
+    return vec4(col, a);
+}
+
+// Six cones around n: one along n and five at u_vx_side_angle from it, aperture tan(30 deg)
+// (Crassin; Godot's layout at 60 degrees: weights pi/4 and 3 pi/20). The weights are each
+// cone's cosine-weighted solid angle, Omega cos(theta), scaled so that they sum to pi: a
+// uniform radiance L gives E = pi L. `rot` turns the five around n (rotated every frame,
+// the pattern converges as frames accumulate). `world`: radiance added for the part of
+// each cone that escapes (1 - opacity); `bounce` scales what the cones gather from the
+// voxels (0: world light only). Returns E; `vis` = the cosine-weighted unoccluded fraction.
+uniform float u_vx_side_angle;  // radians
+vec3 vx_diffuse_cones(vec3 o, vec3 n, float t0, float t1, float step_scale, float rot, vec3 world,
+                      float bounce, out float vis) {
+    vec3 t, b;
+    make_basis(n, t, b);
+    const float TAN30 = 0.57735;
+    float ct = cos(u_vx_side_angle), st = sin(u_vx_side_angle);
+    float w0 = PI / (1.0 + 5.0 * ct);  // cone weights proportional to cos(theta), sum pi
+    vec3 E = vec3(0.0);
+    float occ = 0.0;
+    for (int k = 0; k < 6; ++k) {
+        vec3 d;
+        float w;
+        if (k == 0) {
+            d = n;
+            w = w0;
+        } else {
+            float phi = rot + TWO_PI * float(k - 1) / 5.0;
+            d = normalize(ct * n + st * (cos(phi) * t + sin(phi) * b));
+            w = w0 * ct;
+        }
+        vec4 c = vx_cone(o, d, TAN30, t0, t1, step_scale);
+        E += w * (bounce * c.rgb + (1.0 - c.a) * world);
+        occ += w * c.a;
+    }
+    vis = clamp(1.0 - occ / PI, 0.0, 1.0);
+    return E;
+}
+#endif
+
+#endif

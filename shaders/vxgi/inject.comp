@@ -1,0 +1,185 @@
+// inject.comp — VXGI light injection, one invocation per occupied voxel (the list the
+// voxelisation appended; level 0 is cleared before).
+// Reads the voxel's record (voxelize.frag: albedo, normal and surface point averaged over
+// the triangles overlapping it), clears the record for the next frame, and writes level 0
+// of the six directional radiance volumes (vxgi/common.glsl): the outgoing radiance of the
+// surface side facing each direction, L = rho/pi * E, with E in Cycles' units:
+//  * direct light of every light (point/spot I cos/d^2 with the spot cone, sun E cos,
+//    area and mesh lights by exact polygon irradiance) on each side of the voxel's
+//    surface, shadowed by the shadow maps: the shadow atlas (lib/shadows.glsl: cube maps
+//    of point/spot/area/mesh lights) and, for suns, whose atlas cascades only cover the
+//    camera's frustum, the light's RSM view over the whole scene (passes/rsm.py);
+//  * optional multi-bounce: six diffuse cones per side through last frame's volume
+//    (history; its own cascade origins): last frame's indirect irradiance, plus the world's
+//    radiance for the part of each cone that escapes (sky light).
+// Emission is not voxelised: every emissive instance is a mesh light (gpu_scene.EmitterSet)
+// lighting the voxels like the other lights, and DIRECT draws emitters seen directly.
+#define USE_SCENE_BUFFERS
+#define VX_SAMPLING
+#include "lib/common.glsl"
+#include "lib/rng.glsl"
+#include "lib/sampling.glsl"
+#include "lib/brdf.glsl"
+#include "lib/lights.glsl"
+#include "lib/shadows.glsl"
+#include "raster3d/rsm_common.glsl"
+#include "vxgi/common.glsl"
+
+layout(local_size_x = 256) in;
+layout(std430, binding = VX_BINDING_RECORDS) buffer VoxelRecords { uint vx_rec[]; };
+layout(std430, binding = VX_BINDING_LIST) readonly buffer VoxelList { uint vx_list[]; };
+layout(binding = 0, rgba16f) uniform writeonly image3D o_radiance;
+
+uniform vec4 u_cur_origin[VX_MAX_CASCADES];  // this frame's grid (u_vx_origin: last frame's)
+uniform int u_rsm_light[RSM_MAX_VIEWS];      // light index of each RSM view
+uniform int u_bounce;                        // multi-bounce: gather last frame's volume
+uniform int u_gather;                        // gather at all (multi-bounce or a lit world)
+uniform vec3 u_world;
+uniform float u_shadow_offset;               // voxels: shadow lookups start this far off the surface
+uniform float u_normal_offset;               // voxels: cones start this far off the surface
+uniform float u_step;
+uniform float u_max_distance;
+uniform int u_mesh_exact_max;
+uniform uint u_sample;
+uniform int u_directional_opacity;  // level-0 opacity towards D: |n.D| (else 1)
+
+// Visibility of the light from the RSM view v (sun): 3x3 depth comparisons.
+float rsm_visibility(int v, vec3 p, float bias) {
+    vec4 c = u_rsm_vp[v] * vec4(p, 1.0);
+    if (c.w <= 1e-6) return 1.0;
+    vec3 ndc = c.xyz / c.w;
+    if (any(greaterThan(abs(ndc.xy), vec2(1.0)))) return 1.0;
+    vec4 rect = u_rsm_rect[v];
+    bool ortho = u_rsm_origin[v].w > 0.5;
+    vec3 org = u_rsm_origin[v].xyz, fwd = u_rsm_fwd[v].xyz;
+    float mp = ortho ? dot(p - org, fwd) : length(p - org);
+    ivec2 base = ivec2(rect.xy), size = ivec2(rect.zw);
+    ivec2 t0 = ivec2((ndc.xy * 0.5 + 0.5) * rect.zw);
+    float lit = 0.0;
+    for (int dy = -1; dy <= 1; ++dy) {
+        for (int dx = -1; dx <= 1; ++dx) {
+            ivec2 t = base + clamp(t0 + ivec2(dx, dy), ivec2(0), size - 1);
+            vec4 q = texelFetch(u_rsm_pos, t, 0);
+            if (q.w < 0.5) { lit += 1.0; continue; }
+            float mq = ortho ? dot(q.xyz - org, fwd) : length(q.xyz - org);
+            lit += (mp <= mq + bias) ? 1.0 : 0.0;
+        }
+    }
+    return lit / 9.0;
+}
+
+int rsm_view_of(int li) {
+    for (int v = 0; v < u_rsm_count; ++v)
+        if (u_rsm_light[v] == li) return v;
+    return -1;
+}
+
+// Visibility of light li from p on the side whose normal is nf.
+float visibility(int li, Light L, vec3 p, vec3 nf, float vs) {
+    vec3 ps = p + nf * (u_shadow_offset * vs);
+    if (int(L.pos_type.w + 0.5) == LIGHT_SUN && L.axis_w.w > 0.5) {
+        int v = rsm_view_of(li);
+        if (v >= 0) return rsm_visibility(v, ps, max(vs, 2.0 * u_rsm_fwd[v].w));
+    }
+    return light_visibility(L, ps, nf, nf);
+}
+
+// Irradiance of light li on the two sides (+n: Ep, -n: Em) of the surface at p.
+void light_irradiance(int li, vec3 p, vec3 n, float vs, inout Rng rng, inout vec3 Ep, inout vec3 Em) {
+    Light L = lights[li];
+    int type = int(L.pos_type.w + 0.5);
+    if (type == LIGHT_POINT || type == LIGHT_SPOT) {
+        vec3 d = L.pos_type.xyz - p;
+        float d2 = max(dot(d, d), 1e-8);
+        vec3 wi = d * inversesqrt(d2);
+        vec3 I = L.color.rgb;
+        if (type == LIGHT_SPOT) I *= spot_attenuation(L, -wi);
+        float c = dot(n, wi);
+        if (max3(I) <= 0.0 || abs(c) < 1e-6) return;
+        vec3 nf = c > 0.0 ? n : -n;
+        vec3 E = I * abs(c) / d2 * visibility(li, L, p, nf, vs);
+        if (c > 0.0) Ep += E; else Em += E;
+    } else if (type == LIGHT_SUN) {
+        vec3 wi = -L.dir_radius.xyz;
+        float c = dot(n, wi);
+        if (abs(c) < 1e-6) return;
+        vec3 nf = c > 0.0 ? n : -n;
+        vec3 E = L.color.rgb * abs(c) * visibility(li, L, p, nf, vs);
+        if (c > 0.0) Ep += E; else Em += E;
+    } else if (type == LIGHT_AREA) {
+        float fp = area_light_irradiance_factor(L, p, n);
+        float fm = area_light_irradiance_factor(L, p, -n);
+        if (fp > 0.0) Ep += L.color.rgb * fp * visibility(li, L, p, n, vs);
+        if (fm > 0.0) Em += L.color.rgb * fm * visibility(li, L, p, -n, vs);
+    } else if (type == LIGHT_MESH) {
+        int first = int(L.axis_w.x + 0.5);
+        int count = int(L.axis_w.y + 0.5);
+        vec3 sp = vec3(0.0), sm = vec3(0.0);
+        if (count <= u_mesh_exact_max) {
+            for (int i = first; i < first + count; ++i) {
+                Emitter e = emitters[i];
+                sp += e.radiance.rgb * max(triangle_irradiance_factor(e.p0.xyz, e.p1.xyz, e.p2.xyz, p, n), 0.0);
+                sm += e.radiance.rgb * max(triangle_irradiance_factor(e.p0.xyz, e.p1.xyz, e.p2.xyz, p, -n), 0.0);
+            }
+        } else {
+            const int K = 8;
+            for (int k = 0; k < K; ++k) {
+                float prob;
+                int i = pick_emitter(L, rng_next4(rng).x, prob);
+                Emitter e = emitters[i];
+                float w = 1.0 / (max(prob, 1e-12) * float(K));
+                sp += e.radiance.rgb * max(triangle_irradiance_factor(e.p0.xyz, e.p1.xyz, e.p2.xyz, p, n), 0.0) * w;
+                sm += e.radiance.rgb * max(triangle_irradiance_factor(e.p0.xyz, e.p1.xyz, e.p2.xyz, p, -n), 0.0) * w;
+            }
+        }
+        if (max3(sp) > 0.0) Ep += sp * visibility(li, L, p, n, vs);
+        if (max3(sm) > 0.0) Em += sm * visibility(li, L, p, -n, vs);
+    }
+}
+
+const vec3 FACE_DIR[6] = vec3[6](vec3(1, 0, 0), vec3(-1, 0, 0), vec3(0, 1, 0), vec3(0, -1, 0),
+                                 vec3(0, 0, 1), vec3(0, 0, -1));
+
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= vx_list[0]) return;  // only the occupied voxels (level 0 was cleared)
+    uint flat_index = vx_list[1u + i];
+    int N = u_vx_n;
+    int C = u_vx_cascades;
+    ivec3 gid = ivec3(int(flat_index % uint(N)), int((flat_index / uint(N)) % uint(N)), int(flat_index / uint(N * N)));
+    int c = gid.z / N;
+    ivec3 v = ivec3(gid.xy, gid.z - c * N);
+    uint base = flat_index * uint(VX_REC);
+    uint count = vx_rec[base + 3u];
+    if (count == 0u) return;
+    float inv = 1.0 / float(count);
+    vec3 rho = vec3(uintBitsToFloat(vx_rec[base]), uintBitsToFloat(vx_rec[base + 1u]),
+                    uintBitsToFloat(vx_rec[base + 2u])) * inv;
+    vec3 nsum = vec3(uintBitsToFloat(vx_rec[base + 4u]), uintBitsToFloat(vx_rec[base + 5u]),
+                     uintBitsToFloat(vx_rec[base + 6u]));
+    vec3 rel = vec3(uintBitsToFloat(vx_rec[base + 7u]), uintBitsToFloat(vx_rec[base + 8u]),
+                    uintBitsToFloat(vx_rec[base + 9u])) * inv;
+    for (uint k = 0u; k < uint(VX_REC); ++k) vx_rec[base + k] = 0u;  // ready for the next frame
+    vec4 o = u_cur_origin[c];
+    float vs = o.w;
+    vec3 p = o.xyz + (vec3(v) + rel) * vs;
+    float nl = length(nsum);
+    vec3 n = nl > 1e-3 * float(count) ? nsum / nl : vec3(0.0, 0.0, 1.0);
+    Rng rng = rng_init(uvec2(gid.x + gid.z * N, gid.y), u_sample, 7u);
+    vec3 Ep = vec3(0.0), Em = vec3(0.0);
+    for (int li = 0; li < u_light_count; ++li) light_irradiance(li, p, n, vs, rng, Ep, Em);
+    if (u_gather == 1) {
+        float rot = fract(float(u_sample % 4096u) * 0.6180339887) * TWO_PI;
+        float vis;
+        float off = u_normal_offset * vs;
+        Ep += vx_diffuse_cones(p + n * off, n, vs, u_max_distance, u_step, rot, u_world, float(u_bounce), vis);
+        Em += vx_diffuse_cones(p - n * off, -n, vs, u_max_distance, u_step, rot, u_world, float(u_bounce), vis);
+    }
+    vec3 Lp = rho * INV_PI * Ep, Lm = rho * INV_PI * Em;
+    for (int f = 0; f < 6; ++f) {
+        float s = dot(n, FACE_DIR[f]);
+        vec3 L = s > 0.05 ? Lp : (s < -0.05 ? Lm : 0.5 * (Lp + Lm));
+        float a = u_directional_opacity == 1 ? max(abs(s), 0.05) : 1.0;
+        imageStore(o_radiance, ivec3(gid.xy, (f * C) * N + gid.z), vec4(sanitize(L) * a, a));
+    }
+}
