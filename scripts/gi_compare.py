@@ -31,6 +31,15 @@ ARGS
   --cache DIR           reference cache folder (default: the user cache)
   --no-cache            always re-render the references
   --use-installed       use the installed extension even when run from a checkout
+  --animation [MOTION]  per-frame comparison of an animation instead of a still (see
+                        docs/COMPARISON.md, addon/compare/animation.py): MOTION is orbit
+                        (default), dolly, pan, light, or scene (the file's own animation)
+  --anim-frames N       moving frames after the start pose (12); --anim-hold N still frames
+                        after the stop (10); --anim-amount X the size of the move (orbit 12
+                        degrees, dolly/pan/light 0.15/0.12/0.15 x the viewed distance, a sun
+                        30 degrees); --anim-ref-spp N Cycles spp per frame (256) and
+                        --anim-ref-denoise on|off (on: OpenImageDenoise); techniques default
+                        to SVGF,TAA and each technique's default quality
 
 Timing: a technique's ``time_ms`` is its per-frame time x samples; its one-time setup
 (scene export, GPU upload, BVH build, shader compilation) is ``setup_ms``, measured apart.
@@ -104,6 +113,13 @@ def parse_args(argv: list[str], scene_optional: bool):
     p.add_argument("--cache", default=None)
     p.add_argument("--no-cache", action="store_true")
     p.add_argument("--use-installed", action="store_true")
+    p.add_argument("--animation", nargs="?", const="orbit", default=None,
+                   choices=("orbit", "dolly", "pan", "light", "scene"))
+    p.add_argument("--anim-frames", type=int, default=12)
+    p.add_argument("--anim-hold", type=int, default=10)
+    p.add_argument("--anim-amount", type=float, default=None)
+    p.add_argument("--anim-ref-spp", type=int, default=256)
+    p.add_argument("--anim-ref-denoise", choices=("on", "off"), default="on")
     a = p.parse_args(argv)
     if a.ref_spp < 1 or a.frames < 1 or a.samples < 1:
         p.error("--ref-spp, --frames and --samples must be >= 1")
@@ -456,6 +472,63 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
     return results
 
 
+# ---------------------------------------------------------------- --animation
+def run_animation(opts, *, pkg=None, session=None, scene=None) -> dict:
+    """``--animation``: every frame against a Cycles reference of that frame (the logic is
+    ``compare/animation.py``); writes results.json (``animation``), animation.png, the frame
+    strips and report.html into ``--out``."""
+    import bpy
+
+    pkg = pkg or find_addon(opts.use_installed)
+    pn = pkg.__name__
+    mods = {m: importlib.import_module(f"{pn}.{p}") for m, p in (
+        ("reference", "blender.reference"), ("export", "blender.export"), ("metrics", "compare.metrics"),
+        ("report", "compare.report"), ("imageio", "compare.imageio"), ("animation", "compare.animation"))}
+    A = mods["animation"]
+    mods["reference"].ensure_oiio()
+    session = session or importlib.import_module(pn + ".render.session")
+    if scene is None:
+        demo = importlib.import_module(pn + ".blender.demo_scenes") if opts.scene and not \
+            opts.scene.lower().endswith(".blend") else None
+        scene = _load_scene(bpy, opts.scene, demo)
+    out = os.path.abspath(opts.out)
+    os.makedirs(out, exist_ok=True)
+    w, h = _resolution(scene, opts.res)
+    infos = {t.id: t for t in session.available_techniques()}
+    wanted = [t.strip() for t in opts.techniques.split(",") if t.strip()] or ["SVGF", "TAA"]
+    unknown = [t for t in wanted if t not in infos]
+    if unknown:
+        raise SystemExit(f"gi_compare: unknown technique(s) {', '.join(unknown)}; available: {', '.join(infos)}")
+    quality = {}
+    if opts.quality != "all":
+        q = [int(x) for x in opts.quality.split(",") if x.strip()]
+        quality = {t: q[0] for t in wanted if q and q[0] in infos[t].quality_levels}
+    quality = {t: quality.get(t, infos[t].default_quality) for t in wanted}
+    spec = A.AnimationSpec(motion=opts.animation, move=opts.anim_frames, hold=opts.anim_hold,
+                           amount=opts.anim_amount, ref_spp=opts.anim_ref_spp,
+                           ref_denoise=opts.anim_ref_denoise == "on", seed=opts.seed)
+    log(f"animation '{spec.motion}' of scene '{scene.name}' at {w}x{h}: {spec.move} moving + {spec.hold} still "
+        f"frames; Cycles {spec.ref_spp} spp{' + OIDN' if spec.ref_denoise else ''} per frame; {', '.join(wanted)}")
+    res = A.run(scene, spec, wanted, reference=mods["reference"], export=mods["export"], session=session,
+                width=w, height=h, quality=quality, cache_dir=opts.cache, use_cache=not opts.no_cache, log=log)
+    images = A.write_outputs(res, out, imageio=mods["imageio"], metrics=mods["metrics"],
+                             title=f"{scene.name}: {spec.motion}, {w}x{h}")
+    results = _clean_json({"scene": scene.name, "resolution": [w, h], "mode": "animation",
+                           "run": {"date": datetime.datetime.now().isoformat(timespec="seconds"),
+                                   "blender": bpy.app.version_string, "animation": spec.motion,
+                                   "resolution": f"{w}x{h}", "ref_spp": spec.ref_spp,
+                                   "ref_denoise": opts.anim_ref_denoise},
+                           "reference_settings": getattr(mods["reference"], "FAIR_SETTINGS_SUMMARY", ""),
+                           "entries": [], "animation": res["animation"]})
+    with open(os.path.join(out, "results.json"), "w", encoding="utf-8") as f:
+        json.dump(results, f, indent=1)
+    mods["report"].write_html(os.path.join(out, "report.html"),
+                              title=f"GI Preview vs Cycles per frame: {scene.name} ({spec.motion}, {w}x{h})",
+                              results=results, images=images)
+    log(f"wrote {os.path.join(out, 'results.json')}, animation.png and report.html")
+    return results
+
+
 def main():
     argv, in_blender = _script_argv()
     opts = parse_args(argv, scene_optional=in_blender)
@@ -464,7 +537,7 @@ def main():
     except ImportError:
         raise SystemExit("gi_compare: needs Blender (blender -b -P) or the bpy module (pip install bpy)")
     try:
-        run(opts)
+        run_animation(opts) if opts.animation else run(opts)
     except Exception as exc:  # GLUnavailableError: one clear line, not a traceback
         if type(exc).__name__ != "GLUnavailableError":
             raise

@@ -213,6 +213,11 @@ def build_html(*, title: str, results: dict, images: dict | None = None, chart_s
                      f'<td>{_num(c.get("relmse"))}</td><td>{_num(c.get("flip"))}</td></tr>')
         p.append("</table>")
 
+    # ---- per-frame comparison of an animation (gi_compare.py --animation)
+    if results.get("animation"):
+        from .animation import report_html
+        p.append(report_html(results["animation"], images))
+
     # ---- per technique images
     p.append("<h2>Images</h2>")
     if colorbar_png:
