@@ -15,14 +15,16 @@
 // contribution, with visibility (a sample made at r is visible by construction; a reused
 // sample is checked by a validation ray, so the final sample needs no shadow ray).
 // Reusing a reservoir made at visible point x_q at x_r multiplies its W by the reconnection
-// Jacobian |dw_q/dw_r| = (cos_r / cos_q) * (|x_q - x_s|^2 / |x_r - x_s|^2), with cos the
+// Jacobian J = |dw_r/dw_q| = (cos_r / cos_q) * (|x_q - x_s|^2 / |x_r - x_s|^2) (solid angle
+// at x_r per solid angle at x_q of the same patch around x_s; a pdf divides by it), cos the
 // angle at x_s between n_s and the direction to the visible point; reuse is refused when it
 // lies outside [1/u_jacobian_max, u_jacobian_max] (grazing reconnections, fireflies).
 // Bias correction u_bias_mode: 0 = 1/M (sum of all M: dark where a reused sample is not
 // visible from every domain); 1 = the balance heuristic over the domains (Bitterli et al.
 // 2020, Alg. 6): m_i(y) = M_i p^_i(y) / sum_j M_j p^_j(y), each domain's target evaluated at
-// its own visible point (in this pixel's solid angle via the Jacobian) with visibility by a
-// ray from there; unbiased for a static scene and robust where the targets differ (glossy).
+// its own visible point and brought into this pixel's solid angle (p^_i / J: a density,
+// while W, an inverse density, is multiplied by J), with visibility by a ray from there;
+// unbiased for a static scene and robust where the targets differ (glossy).
 //
 // STAGE 0: the fresh sample (BSDF-sampled direction at x_v, trace, L_o); temporal reuse of
 //   last frame's final reservoir reprojected through gbuffer.motion (plane/normal tests,
@@ -147,7 +149,8 @@ float phat(Shading sh, Reservoir y) {
     return (p > 0.0 && visible(sh, y)) ? p : 0.0;
 }
 
-// reconnection Jacobian |dw_q / dw_r| for a sample made at visible point xq reused at xr;
+// reconnection Jacobian J = |dw_r / dw_q| for a sample made at visible point xq reused at xr
+// (W_r = W_q J, a density p_r = p_q / J);
 // 0 when it is outside the accepted range
 float jacobian(Reservoir y, vec3 xq, vec3 xr) {
     vec3 dq = xq - y.xs, dr = xr - y.xs;
@@ -285,14 +288,14 @@ void main() {
                     if (u_bias_mode == 1 && W > 0.0) {
                         // balance heuristic over the two domains (Bitterli 2020, Alg. 6): this
                         // frame's (M = 1, target p^_r) and last frame's (M = Mp, its target at
-                        // its visible point, in this pixel's solid angle via the Jacobian, with
-                        // visibility from there)
+                        // its visible point, in this pixel's solid angle: / J, with visibility
+                        // from there)
                         Shading ps = sh;
                         ps.P = vp.xyz; ps.N = normalize(vn.xyz); ps.Ng = ps.N;
                         ps.V = normalize(u_camera_pos - vp.xyz);
                         ps.p = rt_offset_ray(vp.xyz, ps.N);
                         float Jq = jacobian(r, vp.xyz, sh.P);
-                        float pq = Jq > 0.0 ? (picked_prev ? phat_unshadowed(ps, r) : phat(ps, r)) * Jq : 0.0;
+                        float pq = Jq > 0.0 ? (picked_prev ? phat_unshadowed(ps, r) : phat(ps, r)) / Jq : 0.0;
                         float pi = picked_prev ? pq : ph_sel;
                         float den = ph_sel + Mp * pq;
                         W = den > 0.0 ? wsum * pi / (ph_sel * den) : 0.0;
@@ -348,14 +351,14 @@ void main() {
     if (u_bias_mode == 1 && r.W > 0.0) {
         // balance heuristic over this pixel's domain and the neighbours' (Bitterli 2020,
         // Alg. 6): each neighbour's target at its own visible point (visibility by a ray from
-        // there; the chosen sample's own domain saw it), in this pixel's solid angle
+        // there; the chosen sample's own domain saw it), in this pixel's solid angle (/ J)
         float den = Mc * ph_sel, pi = ph_sel;
         for (int k = 0; k < n; ++k) {
             if (nm[k] <= 0.0) continue;
             Shading qs = load(nb[k]);
             float Jk = jacobian(r, qs.P, sh.P);
             if (Jk <= 0.0) continue;
-            float pk = (k == sel ? phat_unshadowed(qs, r) : phat(qs, r)) * Jk;
+            float pk = (k == sel ? phat_unshadowed(qs, r) : phat(qs, r)) / Jk;
             den += nm[k] * pk;
             if (k == sel) pi = pk;
         }
