@@ -25,7 +25,7 @@ import time
 import bpy
 import numpy as np
 
-from ..render import session, techniques
+from ..render import probe_overlay, session, techniques
 from ..render.gl import GLUnavailableError
 from ..render.scene_data import Camera, SceneError
 from ..render.shaders import ShaderError
@@ -297,8 +297,9 @@ def view_draw(engine, context, depsgraph):
     cam = _region_camera(context)
     technique, quality, _ = _settings(scene)
     target = int(scene.gi_preview.viewport_samples)
+    show_probes = bool(getattr(scene.gi_preview, "show_probes", False))  # probe overlay (probe_overlay.py)
     key = (technique, quality, w, h, cam.view.tobytes(), cam.projection.tobytes(), st.data_version,
-           tuple(_filter_options(scene).values()))
+           tuple(_filter_options(scene).values()), show_probes)
     if key != st.key:
         st.key, st.count = key, 0
     # a finished frame: show it (even one of an older view: the newest image there is)
@@ -326,7 +327,8 @@ def view_draw(engine, context, depsgraph):
     if st.future is None and st.count < target and (st.error is None or st.error_key != st.key):
         data = dataclasses.replace(st.data, camera=cam, width=w, height=h)
         try:
-            st.future = session.submit_render(
+            submit = probe_overlay.submit_render if show_probes else session.submit_render
+            st.future = submit(
                 data, technique, quality, 1, continue_accumulation=True, keep_history=True,
                 session=st.session_for(context.region_data), on_done=_redraw_callback(engine, st),
                 **_filter_options(scene))

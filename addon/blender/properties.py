@@ -44,6 +44,10 @@ class GIPreviewSceneSettings(bpy.types.PropertyGroup):
     use_taa: bpy.props.BoolProperty(
         name="TAA", default=False, update=_update,
         description="End the frame graph with temporal anti-aliasing (Karis 2014)")
+    show_probes: bpy.props.BoolProperty(
+        name="Show Probes", default=False, update=_update,
+        description="Rendered viewport: draw the probes of a probe technique (Irradiance volume, DDGI, "
+                    "RTXGI) as small spheres shaded with their irradiance")
     viewport_scale: bpy.props.FloatProperty(
         name="Viewport Resolution", default=0.5, min=0.1, max=1.0, subtype="FACTOR",
         description="Viewport render resolution relative to the region (lower is faster)")

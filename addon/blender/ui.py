@@ -49,6 +49,8 @@ class GIPREVIEW_RENDER_PT_technique(GIPreviewPanel, bpy.types.Panel):
         if s.technique != "AUTO":
             try:
                 info = techniques.get(s.technique).info()
+                if info.family == "probes":
+                    layout.prop(s, "show_probes")
                 layout.label(text=f"Compared with Cycles: {info.reference} reference", icon="INFO")
             except ValueError:
                 pass
