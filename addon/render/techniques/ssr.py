@@ -7,10 +7,13 @@ each pixel's footprint) → ``ssr_trace`` (one GGX visible-normal sampled ray pe
 measured along its normal, edge fade, rays leaving the screen miss) → ``ssr_resolve`` (ratio
 estimator over ``resolve_samples`` neighbouring rays, radius growing with roughness, the own
 ray weighted in closed form so mirrors stay exact; a hit's radiance trusted for its diffuse
-share and its glossy share near the camera direction) → ``ssr_temporal`` → ``ssr_composite``
-(``color += spec_albedo * found - a * aov.world_spec``: what was found on screen replaces its
-share ``a`` of DIRECT's shadowed world reflection, which stays as the fallback for the rest —
-misses, untrusted hits, surfaces rougher than ``max_roughness``). Radiance at a hit is the
+share and its glossy share near the camera direction; also the found hits' mean distance
+``ssr.hit_dist``) → ``ssr_temporal`` (history reprojected by the reflected point, the virtual
+image behind the mirror, where a hit was found) → ``ssr_composite``
+(``color += spec_albedo * found + (1 - a) * fallback - replaced``; by default fallback and
+replaced are DIRECT's shadowed world reflection ``aov.world_spec``, i.e. what was found on
+screen replaces its share ``a`` of it and the rest — misses, untrusted hits, surfaces rougher
+than ``max_roughness`` — keeps it; ``ssr_passes`` lets another technique pass its own fallback). Radiance at a hit is the
 direct-lit colour without emission (one bounce; emitters' glossy reflection is DIRECT's).
 All SSR passes provide INDIRECT_SPECULAR: the planner skips them, saying "no glossy
 surface in view", on a scene without one. Compared with Cycles "one_bounce".
