@@ -1,4 +1,5 @@
-// lpv_inject.frag — adds a VPL's SH intensity into its cell (additive blending).
+// lpv_inject.frag — adds a VPL's SH intensity (or a surfel's blocking) to its cell
+// (additive blending).
 in vec4 g_r;
 in vec4 g_g;
 in vec4 g_b;

@@ -1,77 +1,38 @@
-// lpv_inject.vert — one RSM texel (VPL) per vertex (no attributes: gl_VertexID): finds the
-// finest cascade containing the VPL shifted half a cell along its normal, and the cell.
-// LPV_GV: the geometry volume instead (the texel's surfel, unshifted, into each cascade).
-#include "lib/sh.glsl"
-#define LPV_MAX_CASCADES 4
-
-uniform sampler2D u_rsm_pos;
-uniform sampler2D u_rsm_nrm;
+// lpv_inject.vert — one RSM texel (VPL) or G-buffer pixel (surfel) per vertex, no
+// attributes (gl_VertexID): fetches it and hands it to lpv_inject.geom, which routes it
+// into the cells of the light volumes (LPV_GV: of the geometry volume).
+uniform sampler2D u_rsm_pos;   // LPV_GV_GBUFFER: the G-buffer's position
+uniform sampler2D u_rsm_nrm;   // LPV_GV_GBUFFER: the G-buffer's normal
 uniform sampler2D u_rsm_flux;
 uniform int u_atlas_w;
-uniform int u_grid;
-uniform int u_cascades;
-uniform vec4 u_lpv_origin[LPV_MAX_CASCADES];  // xyz grid corner, w = cell size
-uniform int u_only_cascade;
-
-out vec4 v_r;
-out vec4 v_g;
-out vec4 v_b;
-flat out int v_layer;
-
 #ifdef LPV_GV_GBUFFER
 uniform vec3 u_camera_pos;
 uniform float u_pixel_size;  // pixel size on the image plane at distance 1
 #endif
 
+out vec3 v_pos;
+out vec3 v_nrm;
+out vec4 v_val;  // rgb flux (W), a = surfel area (m²); a < 0: nothing to inject
+
 void main() {
     ivec2 t = ivec2(gl_VertexID % u_atlas_w, gl_VertexID / u_atlas_w);
     vec4 p = texelFetch(u_rsm_pos, t, 0);
-    vec3 n = texelFetch(u_rsm_nrm, t, 0).xyz;
-    vec3 flux = texelFetch(u_rsm_flux, t, 0).rgb;
-#ifdef LPV_GV_GBUFFER
-    // the G-buffer's surfels (u_rsm_pos/nrm bound to the G-buffer): area of the pixel's footprint
-    float surfel_area = 0.0;
-    if (p.w >= 0.0) {
-        vec3 dv = p.xyz - u_camera_pos;
-        float cosv = max(abs(dot(normalize(dv), n)), 0.05);
-        surfel_area = u_pixel_size * u_pixel_size * dot(dv, dv) / cosv;
-    }
-    p.w = p.w >= 0.0 ? 1.0 : 0.0;
-    flux = vec3(1.0);
-#else
-    float surfel_area = texelFetch(u_rsm_nrm, t, 0).w;
-#endif
-    v_layer = -1;
+    vec4 n = texelFetch(u_rsm_nrm, t, 0);
     gl_Position = vec4(2.0, 2.0, 0.0, 1.0);
-    if (p.w < 0.5 || max(flux.r, max(flux.g, flux.b)) <= 0.0) return;
-    for (int c = 0; c < u_cascades; ++c) {
-        float cs = u_lpv_origin[c].w;
-#ifdef LPV_GV
-        // geometry volume: the surfel's blocking potential in the cell that contains it, in
-        // every cascade (one draw per cascade: u_only_cascade)
-        if (c != u_only_cascade) continue;
-        vec3 g = (p.xyz - u_lpv_origin[c].xyz) / cs;
+    v_pos = p.xyz;
+    v_nrm = normalize(n.xyz + vec3(0.0, 0.0, 1e-12));
+#ifdef LPV_GV_GBUFFER
+    // the surfel of the pixel's footprint (w < 0: background)
+    if (p.w < 0.0) { v_val = vec4(-1.0); return; }
+    vec3 dv = p.xyz - u_camera_pos;
+    float cosv = max(abs(dot(normalize(dv), v_nrm)), 0.05);
+    v_val = vec4(1.0, 1.0, 1.0, u_pixel_size * u_pixel_size * dot(dv, dv) / cosv);
 #else
-        vec3 g = (p.xyz + 0.5 * cs * n - u_lpv_origin[c].xyz) / cs;
+    vec3 flux = texelFetch(u_rsm_flux, t, 0).rgb;
+    bool ok = p.w >= 0.5;
+#ifndef LPV_GV
+    ok = ok && max(flux.r, max(flux.g, flux.b)) > 0.0;
 #endif
-        if (all(greaterThanEqual(g, vec3(0.0))) && all(lessThan(g, vec3(float(u_grid))))) {
-            ivec3 cell = ivec3(floor(g));
-            gl_Position = vec4((vec2(cell.xy) + 0.5) / float(u_grid) * 2.0 - 1.0, 0.0, 1.0);
-            v_layer = cell.z + c * u_grid;
-#ifdef LPV_GV
-            // isotropic blocking (a 2-band SH of |n.w| is isotropic): area over the cell's
-            // face area, i.e. the fraction of the face a perpendicular surfel covers
-            v_r = vec4(surfel_area / (cs * cs), 0.0, 0.0, 0.0);
-            v_g = v_r;
-            v_b = v_r;
-            return;
+    v_val = ok ? vec4(flux, n.w) : vec4(-1.0);
 #endif
-            // a Lambertian VPL: intensity Φ/π max(0, n.w) (W/sr)
-            vec4 lobe = sh_cosine_lobe(n) * (1.0 / 3.14159265358979);
-            v_r = lobe * flux.r;
-            v_g = lobe * flux.g;
-            v_b = lobe * flux.b;
-            return;
-        }
-    }
 }

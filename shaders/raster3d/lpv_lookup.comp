@@ -1,54 +1,122 @@
-// lpv_lookup.comp — indirect diffuse from the light propagation volume: per pixel, the
-// accumulated SH intensity of every cascade containing P + ½ cell · N (normal offset),
-// trilinear (bilinear in the layer + linear between layers), as radiance L = I / cell²,
-// integrated against the cosine lobe of the incoming hemisphere: E = ∫ L(w) max(0, -N·w) dw.
-// Cascades hold disjoint VPLs (each VPL in the finest cascade containing it), so their
-// irradiances add. Dampening (Kaplanyan 2009): light flowing away from the surface along
-// N (the SH gradient aligned with N, the surface's own injected light) is scaled by
-// 1 - u_dampening · max(0, cos). Output rgb = E/π, a = 1.
+// lpv_lookup.comp — indirect diffuse from the light propagation volume, per pixel.
+// Cascades (Kaplanyan & Dachsbacher 2010, lpv_common.glsl): with f the finest cascade
+// whose membership box holds the lookup point, E = A_f(P) + Σ_{c>f} R_c(P): the light of
+// the VPLs near the camera at the fine resolution, the rest from the coarser rings, each
+// VPL counted once. Within 2 cells of M_f's border the result blends linearly into the
+// next cascade's (no popping when the camera moves; the grids are snapped to their cells).
+// Per slab: SH intensity at P + ½ cell · N (normal offset), interpolated trilinearly over
+// the 8 nearest cell centres, leaving out centres behind the surface's plane and weighting
+// each by the geometry volume's transmittance between the cell of the lookup point and it
+// (what a thin wall separates is not interpolated across it, corner_transmittance); the
+// weights are renormalised (if every centre is blocked, the centres in front are used). Radiance L = I / cell², irradiance E = ∫ L(ω) max(0, -N·ω) dω (an SH dot
+// product). Dampening (Kaplanyan 2009): light flowing away from the surface along N (the
+// SH gradient aligned with N: the surface's own injected light) scales the slab's
+// irradiance by 1 - u_dampening · max(0, cos). Output rgb = E/π, a = 1; o_cascade: f plus
+// the blend towards f + 1 (the GI_LPV_Cascade debug view).
 #include "lib/sh.glsl"
+#include "raster3d/lpv_common.glsl"
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, rgba32f) uniform writeonly image2D o_out;
-#define LPV_MAX_CASCADES 4
+layout(binding = 1, rgba16f) uniform writeonly image2D o_cascade;
 uniform sampler2D u_gb_position;
 uniform sampler2D u_gb_normal;
 uniform sampler2DArray u_lpv_r;
 uniform sampler2DArray u_lpv_g;
 uniform sampler2DArray u_lpv_b;
-uniform int u_grid;
-uniform int u_cascades;
-uniform vec4 u_lpv_origin[LPV_MAX_CASCADES];
+uniform sampler2DArray u_gv;
+uniform int u_use_gv;
 uniform float u_dampening;
 
-vec4 fetch3(sampler2DArray t, vec3 g, int slab) {
-    // g in cell units, cell centres at integer + 0.5
-    vec2 uv = g.xy / float(u_grid);
-    float z = clamp(g.z - 0.5, 0.0, float(u_grid - 1));
-    float z0 = floor(z);
-    float f = z - z0;
-    float z1 = min(z0 + 1.0, float(u_grid - 1));
-    vec4 a = texture(t, vec3(uv, z0 + float(slab * u_grid)));
-    vec4 b = texture(t, vec3(uv, z1 + float(slab * u_grid)));
-    return mix(a, b, f);
+// Geometry-volume transmittance from the lookup point g (cell units) to the centre of
+// corner cell cc, per axis a: where cc and the cell n0 containing g differ, the staggered
+// cell of their shared face; where they agree, the staggered cell holding the short
+// segment from g to n0's centre (a wall inside n0 between the point and the centre), not
+// counted when the segment runs away from the surface along a substantial normal
+// component (the surface's own surfels are behind the point).
+float corner_transmittance(int c, vec3 g, ivec3 n0, ivec3 cc, vec3 N) {
+    float tr = 1.0;
+    for (int a = 0; a < 3; ++a) {
+        ivec3 fi = n0;
+        if (cc[a] != n0[a]) {
+            fi[a] = min(cc[a], n0[a]);
+        } else {
+            float v = float(n0[a]) + 0.5;
+            if ((v - g[a]) * N[a] > 0.0 && abs(N[a]) > 0.3) continue;
+            fi[a] = int(floor(0.5 * (g[a] + v) - 0.5));
+        }
+        if (fi[a] < 0 || fi[a] >= u_grid) continue;
+        tr *= 1.0 - clamp(texelFetch(u_gv, ivec3(fi.xy, fi.z + c * u_grid), 0)[a], 0.0, 1.0);
+    }
+    return tr;
+}
+
+vec3 slab_irradiance(int slab, int c, vec3 P, vec3 N) {
+    float cs = u_lpv_origin[c].w;
+    vec3 gp = lpv_cell_coord(c, P);
+    vec3 g = gp + 0.5 * N;
+    ivec3 n0 = ivec3(floor(g));
+    vec3 f = g - 0.5;
+    ivec3 b = ivec3(floor(f));
+    vec3 t = f - vec3(b);
+    vec4 r = vec4(0.0), gg = vec4(0.0), bb = vec4(0.0);
+    float wsum = 0.0;
+    for (int pass_ = 0; pass_ < 2 && wsum < 1e-6; ++pass_) {
+    for (int k = 0; k < 8; ++k) {
+        ivec3 o = ivec3(k & 1, (k >> 1) & 1, k >> 2);
+        ivec3 cc = b + o;
+        if (any(lessThan(cc, ivec3(0))) || any(greaterThanEqual(cc, ivec3(u_grid)))) continue;
+        if (dot(vec3(cc) + 0.5 - gp, N) <= 0.0) continue;  // behind the surface
+        float w = (o.x == 1 ? t.x : 1.0 - t.x) * (o.y == 1 ? t.y : 1.0 - t.y) * (o.z == 1 ? t.z : 1.0 - t.z);
+        if (u_use_gv == 1 && pass_ == 0) w *= corner_transmittance(c, g, n0, cc, N);
+        if (w <= 0.0) continue;
+        ivec3 tc = ivec3(cc.xy, cc.z + slab * u_grid);
+        r += w * texelFetch(u_lpv_r, tc, 0);
+        gg += w * texelFetch(u_lpv_g, tc, 0);
+        bb += w * texelFetch(u_lpv_b, tc, 0);
+        wsum += w;
+    }
+    }  // second pass (everything blocked): the centres in front of the surface, unweighted
+    if (wsum < 1e-6) return vec3(0.0);
+    r /= wsum; gg /= wsum; bb /= wsum;
+    vec3 e = vec3(sh_cosine_integral(r, -N), sh_cosine_integral(gg, -N), sh_cosine_integral(bb, -N));
+    vec3 grad = 0.2126 * r.yzw + 0.7152 * gg.yzw + 0.0722 * bb.yzw;
+    float gl = length(grad);
+    float damp = gl > 1e-20 ? 1.0 - u_dampening * max(dot(grad / gl, N), 0.0) : 1.0;
+    return e * damp / (cs * cs);
+}
+
+// E of cascade f: A_f + the coarser rings
+vec3 cascade_irradiance(int f, vec3 P, vec3 N) {
+    vec3 E = slab_irradiance(lpv_slab_all(f), f, P, N);
+    for (int c = f + 1; c < u_cascades; ++c) E += slab_irradiance(lpv_slab_ring(c), c, P, N);
+    return E;
 }
 
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     if (any(greaterThanEqual(px, imageSize(o_out)))) return;
     vec4 pos = texelFetch(u_gb_position, px, 0);
-    if (pos.w < 0.0) { imageStore(o_out, px, vec4(0.0, 0.0, 0.0, 1.0)); return; }
-    vec3 N = normalize(texelFetch(u_gb_normal, px, 0).xyz + vec3(0.0, 0.0, 1e-12));
-    vec3 E = vec3(0.0);
-    for (int c = 0; c < u_cascades; ++c) {
-        float cs = u_lpv_origin[c].w;
-        vec3 g = (pos.xyz + 0.5 * cs * N - u_lpv_origin[c].xyz) / cs;
-        if (any(lessThan(g, vec3(0.0))) || any(greaterThan(g, vec3(float(u_grid))))) continue;
-        vec4 r = fetch3(u_lpv_r, g, c), gg = fetch3(u_lpv_g, g, c), b = fetch3(u_lpv_b, g, c);
-        vec3 e = vec3(sh_cosine_integral(r, -N), sh_cosine_integral(gg, -N), sh_cosine_integral(b, -N));
-        vec3 grad = 0.2126 * r.yzw + 0.7152 * gg.yzw + 0.0722 * b.yzw;
-        float gl = length(grad);
-        float damp = gl > 1e-20 ? 1.0 - u_dampening * max(dot(grad / gl, N), 0.0) : 1.0;
-        E += max(e, vec3(0.0)) * damp / (cs * cs);
+    if (pos.w < 0.0) {
+        imageStore(o_out, px, vec4(0.0, 0.0, 0.0, 1.0));
+        imageStore(o_cascade, px, vec4(0.0));
+        return;
     }
-    imageStore(o_out, px, vec4(E * 0.31830988618, 1.0));
+    vec3 P = pos.xyz;
+    vec3 N = normalize(texelFetch(u_gb_normal, px, 0).xyz + vec3(0.0, 0.0, 1e-12));
+    int f = -1;
+    float margin = 0.0;
+    for (int c = 0; c < u_cascades; ++c) {
+        margin = lpv_member_margin(c, P + 0.5 * u_lpv_origin[c].w * N);
+        if (margin >= 0.0) { f = c; break; }
+    }
+    vec3 E = vec3(0.0);
+    float shown = float(u_cascades);
+    if (f >= 0) {
+        float w = f == u_cascades - 1 ? 1.0 : clamp(margin / 2.0, 0.0, 1.0);
+        E = w * cascade_irradiance(f, P, N);
+        if (w < 1.0) E += (1.0 - w) * cascade_irradiance(f + 1, P, N);
+        shown = float(f) + (1.0 - w);
+    }
+    imageStore(o_out, px, vec4(max(E, vec3(0.0)) * 0.31830988618, 1.0));
+    imageStore(o_cascade, px, vec4(vec3(shown), 1.0));
 }

@@ -1,9 +1,11 @@
 """LPV: cascaded light propagation volumes (Kaplanyan 2009; Kaplanyan & Dachsbacher 2010).
 
-Passes: DIRECT's → ``rsm`` (passes/rsm.py: the VPLs) → ``lpv`` (injection into 2-band SH
-per cell, propagation; passes/lpv.py) → ``lpv_lookup`` (trilinear SH lookup with a
-normal offset and dampening) → ``lpv_composite`` (``color += albedo_d · E/π``).
-One diffuse bounce; compared with Cycles "one_bounce". See docs/techniques/LPV.md.
+Passes: DIRECT's → ``rsm`` (passes/rsm.py: the VPLs) → ``lpv`` (cascades, injection into
+2-band SH per cell, geometry volume, propagation; passes/lpv.py) → ``lpv_lookup``
+(trilinear SH lookup with a normal offset, occlusion-aware weights, dampening) →
+``lpv_composite`` (``color += albedo_d · E/π``) → ``rsm_debug`` (GI_RSM_Flux) and
+``lpv_debug`` (GI_LPV_Slice). One diffuse bounce; compared with Cycles "one_bounce".
+See docs/techniques/LPV.md.
 
 | parameter | range | meaning |
 |---|---|---|
@@ -11,31 +13,28 @@ One diffuse bounce; compared with Cycles "one_bounce". See docs/techniques/LPV.m
 | grid | 8–64 | cells per side of a cascade |
 | cascades | 1–4 | nested cascades, cell size doubling |
 | cell_size | 0–100 | finest cell size (0 = the coarsest cascade covers the scene) |
-| iteration_scale | 0.05–4 | propagation steps per cell of the grid side (0.5: 12 steps at 24 cells) |
+| geometry_volume | bool | fuzzy occlusion by the RSM and G-buffer surfels |
+| iteration_scale | 0.05–4 | propagation steps per cell of the grid side |
+| inject_scale | 0–1 | weight of the unpropagated injected light in the result |
 | dampening | 0–1 | scale of light flowing away along the normal |
-
-**Experimental, not registered unless GI_PREVIEW_EXPERIMENTAL=1**: on the sun-lit room the
-light of the sun-lit exterior (roof, outer walls) still leaks into the room through the
-fuzzy geometry volume (mean 2.1x Cycles' one bounce; see docs/techniques/LPV.md), so it
-stays out of the technique menu, AUTO and the hard-case tests until that is fixed.
+| debug_cascade, debug_height | | the slice GI_LPV_Slice shows |
 
 Quality ladder (RSM px, grid, cascades): 0 = 64, 16, 2; 1 = 128, 24, 3; 2 = 256, 32, 3;
-3 = 512, 48, 3.
+3 = 512, 40, 3.
 """
 from __future__ import annotations
 
-import os
-
 from ..passes.gbuffer import GBufferPass
 from ..passes.light_cull import LightCullPass
-from ..passes.lpv import LPVLookupPass, LPVPass
-from ..passes.rsm import INDIRECT, LightGatedGraph, RSMPass
+from ..passes.lpv import LPVDebugPass, LPVLookupPass, LPVPass
+from ..passes.rsm import INDIRECT, LightGatedGraph, RSMDebugPass, RSMPass
 from ..passes.screen_space import CompositePass
 from ..passes.shadows import ShadowPass
 from . import Technique, register
 from .direct import DIRECT_OUTPUTS, DirectLightPass
 
 
+@register
 class LPV(Technique):
     id = "LPV"
     label = "LPV"
@@ -43,17 +42,19 @@ class LPV(Technique):
     family = "raster3d"
     reference = "one_bounce"
     cost_rank = 25
-    outputs = {**DIRECT_OUTPUTS, "GI_IndirectDiffuse": "lpv_composite.effect"}
+    outputs = {**DIRECT_OUTPUTS, "GI_IndirectDiffuse": "lpv_composite.effect", "GI_RSM_Flux": "rsm.debug_flux",
+               "GI_LPV_Slice": "lpv.debug_slice", "GI_LPV_Cascade": "lpv.cascade"}
 
     def passes(self, quality):
+        lpv = LPVPass(quality)
         return [GBufferPass(quality), LightCullPass(quality), ShadowPass(quality), DirectLightPass(quality),
-                RSMPass(quality), LPVPass(quality), LPVLookupPass(quality),
+                RSMPass(quality), lpv, LPVLookupPass(quality, lpv=lpv),
                 CompositePass(quality, name="lpv_composite", mode="SSDO", signal="lpv.raw",
-                              ao_output="lpv.vis", provides=INDIRECT)]
+                              ao_output="lpv.vis", provides=INDIRECT),
+                RSMDebugPass(quality), LPVDebugPass(quality)]
 
     def build(self, quality):
         return LightGatedGraph(self.passes(quality))
 
 
-if os.environ.get("GI_PREVIEW_EXPERIMENTAL") == "1":
-    register(LPV)
+__all__ = ["LPV"]
