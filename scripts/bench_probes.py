@@ -31,6 +31,7 @@ run one at a time under the heavy-command lock):
   RTXGI's probe glossy light as its miss fallback) against Cycles "full" -> ssr.json.
 
 Run: flock /tmp/gi_heavy.lock .venv/bin/python scripts/bench_probes.py --only energy [--res 48] [--spp 256]
+Tables for the pages: .venv/bin/python scripts/bench_probes.py --tables
 """
 from __future__ import annotations
 
@@ -349,6 +350,61 @@ def ssr(res, spp, samples):
     return out
 
 
+def _fmt_speedup(v, key="speedup", bkey="bound"):
+    if v.get(key) is not None:
+        return f"{v[key]:.3g}×"
+    b = v.get(bkey) or {}
+    if b.get("at_most") is not None:
+        return f"≤{b['at_most']:.3g}×"
+    if b.get("at_least") is not None:
+        return f"≥{b['at_least']:.3g}×"
+    return "n/a"
+
+
+def tables():
+    """Markdown tables of the JSON results present (for the docs pages)."""
+    def load(name):
+        f = OUT / f"{name}.json"
+        return json.loads(f.read_text())["data"] if f.exists() else None
+
+    sp = load("speedups")
+    if sp:
+        print("| scene | technique | relMSE | ms/frame | warm-up | Cycles | Cycles + OIDN | EEVEE |")
+        print("|---|---|---|---|---|---|---|---|")
+        for scene, d in sp.items():
+            for e in d["entries"]:
+                cells = []
+                for b in ("cycles", "cycles_denoised", "eevee"):
+                    v = (e.get("speedups") or {}).get(b)
+                    if not v:
+                        cells.append("–")
+                        continue
+                    t = _fmt_speedup(v)
+                    if e["warmup_frames"]:
+                        t += f" ({_fmt_speedup(v, 'speedup_with_warmup', 'bound_with_warmup')} with warm-up)"
+                    cells.append(t)
+                print(f"| {scene} | {e['technique']} | {e['relmse']:.4f} | {e['frame_ms']:.0f} | {e['warmup_frames']} | "
+                      + " | ".join(cells) + " |")
+    dyn = load("dynamics")
+    if dyn:
+        print("\n| technique | settle after off (frames) | settle after move | error at frame 29 | at 59 | "
+              "probe residual off (max) | moved probe diff max / p95 | noise floor max / p95 |")
+        print("|---|---|---|---|---|---|---|---|")
+        for t, r in dyn["techniques"].items():
+            e = [x["mae_rel"] for x in r["errors"]]
+            pr = (f"{r['off_residual_max']:.4f} | {r['moved_probe_diff_max']:.3f} / {r['moved_probe_diff_p95']:.3f} | "
+                  f"{r['noise_probe_diff_max']:.3f} / {r['noise_probe_diff_p95']:.3f}") if "off_residual_max" in r else "– | – | –"
+            print(f"| {t} | {r['settle_off']} | {r['settle_moved']} | {e[29]:.4f} | {e[59]:.4f} | {pr} |")
+    ss = load("ssr")
+    if ss:
+        print("\n| scene | DIRECT | SSR | RTXGI | RTXGI_SSR |")
+        print("|---|---|---|---|---|")
+        for row in ss:
+            t = row["techniques"]
+            print(f"| {row['scene']} | " + " | ".join(f"{t[k]['relmse']:.4f}" for k in ("DIRECT", "SSR", "RTXGI", "RTXGI_SSR"))
+                  + " |")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--res", type=int, default=48)
@@ -356,7 +412,11 @@ def main():
     ap.add_argument("--samples", type=int, default=8)
     ap.add_argument("--scenes", default="cornell,sunlit_room")
     ap.add_argument("--only", default="energy,leak,ladder,compare,dynamics,ssr")
+    ap.add_argument("--tables", action="store_true", help="print the markdown tables of the stored results")
     a = ap.parse_args()
+    if a.tables:
+        tables()
+        return
     OUT.mkdir(parents=True, exist_ok=True)
     only = a.only.split(",")
     meta = {"res": a.res, "spp": a.spp, "samples": a.samples, "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime())}

@@ -4,9 +4,10 @@
 // its lattice point.
 // PROBE_RELOCATE (RTXGI, Majercik et al. 2021): from this frame's fixed rays (traced from the
 //   current position): more than u_backface_ratio of them hitting back faces means the probe is
-//   inside geometry -> move it just past the closest back face; otherwise a front face closer
-//   than u_min_frontface -> move away from it. Offsets never exceed u_max_offset (0.45) of a
-//   cell per axis.
+//   inside geometry -> move it just past the closest back face (+ half u_min_frontface).
+//   (The SDK's second rule, moving away from a front face closer than u_min_frontface, is not
+//   implemented: close_front/dir_front are measured but unused.) Offsets never exceed
+//   u_max_offset (0.45) of a cell per axis.
 // PROBE_CLASSIFY (RTXGI): inactive when inside geometry (back-face ratio), or when no fixed ray
 //   hits a surface within the probe's own cell (empty space: no receiver interpolates from it).
 //   An inactive probe still traces its fixed rays, so it is reactivated when that changes.
