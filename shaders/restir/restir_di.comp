@@ -1,19 +1,44 @@
 // restir_di.comp — ReSTIR DI (Bitterli et al. 2020, "Spatiotemporal reservoir resampling for
-// real-time ray tracing with dynamic direct lighting").
-// Samples live in primary sample space: a reservoir holds u = (light select, 2D point, emitter
-// select) in [0,1)^4, mapped to a light point by the shared sampler (select_light +
-// sample_light) at whichever pixel evaluates it, so reusing it at another pixel needs no
-// Jacobian. Target p^(u) = luminance(f Li cos / (p_sel p_light)) (the unshadowed
-// contribution); candidates have pdf 1 in this space.
-// STAGE 0: u_candidates RIS candidates, visibility reuse (the chosen sample's shadow ray:
-//   occluded -> W = 0), temporal reuse from last frame's final reservoir reprojected through
-//   gbuffer.motion (plane/normal tests), M capped at u_m_cap x candidates.
-// STAGE 1: spatial reuse over u_spatial neighbours in a u_radius-pixel disk (depth/normal
-//   tests), bias correction u_bias_mode: 0 = 1/M, 1 = MIS-normalised (1/Z, Z = the M of the
-//   reservoirs whose surface can produce the sample), 2 = 1 with ray-traced visibility in Z;
-//   then shading (final shadow ray) + emission, and the reservoir kept for the next frame.
-// BASELINE (u_baseline_spp > 0, STAGE 1 only): the mean of u_baseline_spp light samples by
-//   power (the same shared sampler without reuse), for equal-time comparisons.
+// real-time ray tracing with dynamic direct lighting") on the shared ray tracer.
+//
+// SAMPLE. A reservoir holds one light sample y as a point that means the same thing at every
+// pixel: a point on a light's surface (sphere, area, emissive triangle: position, light
+// normal, radiance), a delta point light's position, or a direction (sun, and the world
+// reached by a BSDF ray: light id -1). Its contribution at a shading point x is
+//   c_x(y) = f_x(w) Le(y, -w) G(x, y),   G = |cos_y| / d^2 (surfaces), 1 / d^2 (delta points),
+//   1 (directions),
+// in the area (or discrete, or solid-angle) measure of y, so reusing y at another pixel needs
+// no Jacobian. Target p^_x(y) = mean of c_x(y)'s channels (unshadowed).
+// CANDIDATES (STAGE 0). u_light_cands light samples by power (the shared select_light +
+// sample_light: every light type, emissive triangles) and u_bsdf_cands BSDF samples (a ray
+// through the BVH; the nearest area/sphere light it crosses, else the emissive triangle it
+// hits, else on a miss a sun disk or the world; area/sphere/sun lights only while the scene
+// has at most bsdf_light_max of them), weighted for RIS with MIS'd candidate pdfs
+// (balance heuristic over both strategies, Talbot 2005):
+//   w = p^(y) / (M_L p_L(y) + M_B p_B(y)),   W = sum w / p^(y),   M = M_L + M_B.
+// VISIBILITY REUSE: the chosen sample's shadow ray; occluded -> W = 0.
+// TEMPORAL REUSE (u_temporal, STAGE 0): last frame's final reservoir at the pixel reprojected
+//   through gbuffer.motion (plane distance and normal tests against the surface it was made
+//   for, restir.pos/nrm@prev), its M capped at u_m_cap x M.
+// SPATIAL REUSE (STAGE 1): u_spatial neighbours in a u_radius-pixel disk (depth within 10 %,
+//   normals within ~25 deg).
+// COMBINING reservoirs r_i (sample y_i, W_i, M_i, made at surface x_i) at pixel x: resampling
+//   weights w_i = p^_x(y_i) W_i M_i, one is selected (s), and
+//   u_bias_mode 0 (1/M):            W = sum w / (p^_x(y) sum M_i)                 biased
+//   u_bias_mode 1 (MIS-normalised):  W = sum w p^_s(y) / (p^_x(y) sum M_i p^_i(y))
+//   u_bias_mode 2 (ray-traced visibility): as 1 with p^_i(y) V_i(y) (a shadow ray from each
+//     other surface): the balance heuristic over the supports the W_i are valid for
+//     (visibility reuse makes a reservoir's support the part of the light visible from its
+//     own surface), hence unbiased. Modes 0 and 1 count reservoirs that could not have
+//     produced y where it is visible here but hidden there: darker near shadow edges.
+// FINAL (STAGE 1): shade c_x(y) V W with one shadow ray; an occluded sample is kept with
+//   W = 0 (final visibility), so hidden samples do not live on in the history and make it dark.
+// BASELINE (STAGE 2, u_baseline_spp > 0): the mean of u_baseline_spp samples of the shared
+//   light sampler by power (shade_direct_at), no reuse: the equal-time comparison.
+//   u_baseline_bsdf 1 (default): plus one BSDF ray per sample for the world light (which light
+//   sampling does not cover; an any-hit ray); 0: light samples only (misses the world);
+//   2: MIS'd with a BSDF ray whose emission bsdf_hit_light_mis collects (PT's estimator: it
+//   tests every light per ray, slow with hundreds of lights).
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/sampling.glsl"
@@ -22,210 +47,574 @@
 #include "lib/lights.glsl"
 #include "lib/scene_rt.glsl"
 
+#ifndef RESTIR_STAGE
+#define RESTIR_STAGE 0
+#endif
+
 layout(local_size_x = 8, local_size_y = 8) in;
-layout(binding = 0, rgba32f) uniform writeonly image2D o_u;      // reservoir sample u
-layout(binding = 1, rgba32f) uniform writeonly image2D o_meta;   // W, M, p^ (at its pixel), 0
-layout(binding = 2, rgba32f) uniform writeonly image2D o_color;
-layout(binding = 3, rgba32f) uniform writeonly image2D o_pos;    // xyz, w = material id (-1 none)
-layout(binding = 4, rgba32f) uniform writeonly image2D o_nrm;    // shading normal
+#if RESTIR_STAGE == 0
+layout(binding = 0, rgba32f) uniform writeonly image2D o_y;      // sample: y (point or direction), light id
+layout(binding = 1, rgba32f) uniform writeonly image2D o_meta;   // W, M, octahedral light normal
+layout(binding = 2, rgba32f) uniform writeonly image2D o_le;     // radiance at y (without spot falloff)
+layout(binding = 3, rgba32f) uniform writeonly image2D o_pos;    // surface the reservoir is for: xyz, w = 0 | -1 none
+layout(binding = 4, rgba32f) uniform writeonly image2D o_nrm;    // its shading, geometric normal (octahedral)
+layout(binding = 5, rgba32f) uniform writeonly image2D o_emit;   // emission seen (Emit pass)
+#elif RESTIR_STAGE == 1
+layout(binding = 0, rgba32f) uniform writeonly image2D o_y;
+layout(binding = 1, rgba32f) uniform writeonly image2D o_meta;
+layout(binding = 2, rgba32f) uniform writeonly image2D o_le;
+layout(binding = 3, rgba32f) uniform writeonly image2D o_color;
+layout(binding = 4, rgba32f) uniform writeonly image2D o_direct; // direct light (GI_Direct)
+layout(binding = 5, rgba32f) uniform writeonly image2D o_dbg_w;  // debug: W
+layout(binding = 6, rgba32f) uniform writeonly image2D o_dbg_m;  // debug: M
+#else
+layout(binding = 3, rgba32f) uniform writeonly image2D o_color;
+layout(binding = 4, rgba32f) uniform writeonly image2D o_direct;
+layout(binding = 5, rgba32f) uniform writeonly image2D o_emit;
+#endif
 
 uniform sampler2D u_gb_albedo;
 uniform sampler2D u_gb_position;
 uniform sampler2D u_gb_normal;
 uniform sampler2D u_gb_geonormal;
 uniform sampler2D u_gb_motion;
-uniform sampler2D u_in_u;       // STAGE 0: last frame's final reservoirs; STAGE 1: this frame's
+uniform sampler2D u_in_y;       // STAGE 0: last frame's final reservoirs; STAGE 1: this frame's
 uniform sampler2D u_in_meta;
+uniform sampler2D u_in_le;
 uniform sampler2D u_prev_pos;
 uniform sampler2D u_prev_nrm;
-uniform int u_stage;
 uniform int u_reset;
-uniform int u_candidates;
+uniform int u_light_cands;
+uniform int u_bsdf_cands;
+uniform int u_bsdf_analytic;  // 1: BSDF candidates see area, sphere and sun-disk lights
 uniform int u_temporal;
 uniform int u_spatial;
-uniform float u_radius;
+uniform int u_shade_all;
+uniform float u_radius;      // spatial radius, a fraction of the image's larger side
+uniform float u_radius_min;  // pixels
 uniform float u_m_cap;
 uniform int u_bias_mode;
 uniform int u_baseline_spp;
+uniform int u_baseline_bsdf;
 uniform uint u_sample;
 uniform uint u_seed;
 uniform vec3 u_camera_pos;
 
+// ------------------------------------------------------------------ shading points
 struct Shading { Surface s; vec3 P; vec3 N; vec3 Ng; vec3 V; vec3 p; bool valid; };
 
-Shading load(ivec2 q) {
+Shading make_shading(vec3 P, vec3 N, vec3 Ng, Surface s, bool valid) {
     Shading sh;
-    vec4 pos = texelFetch(u_gb_position, q, 0);
-    sh.valid = pos.w >= 0.0;
-    sh.P = pos.xyz;
-    sh.V = normalize(u_camera_pos - pos.xyz);
-    sh.N = normalize(texelFetch(u_gb_normal, q, 0).xyz + vec3(0.0, 0.0, 1e-12));
-    sh.Ng = normalize(texelFetch(u_gb_geonormal, q, 0).xyz + vec3(0.0, 0.0, 1e-12));
+    sh.valid = valid;
+    sh.P = P;
+    sh.V = normalize(u_camera_pos - P);
+    sh.N = normalize(N + vec3(0.0, 0.0, 1e-12));
+    sh.Ng = normalize(Ng + vec3(0.0, 0.0, 1e-12));
     if (dot(sh.Ng, sh.V) < 0.0) sh.Ng = -sh.Ng;
-    sh.s = make_surface(scene_material(int(pos.w + 0.5)), texelFetch(u_gb_albedo, q, 0).rgb);
-    // rays leave from a point off the surface along the geometric normal (scale-aware)
-    sh.p = sh.P + sh.Ng * (1e-4 * (1.0 + length(sh.P)));
+    if (dot(sh.N, sh.V) <= 0.0) sh.N = sh.Ng;
+    sh.s = s;
+    sh.p = rt_offset_ray(P, sh.Ng);  // rays leave from a point off the surface
     return sh;
 }
 
-// unshadowed contribution of sample u at a shading point, in primary sample space
-vec3 contrib(Shading sh, vec4 u, out vec3 dir, out float dist, out bool shadows) {
-    dir = vec3(0.0); dist = 0.0; shadows = false;
-    if (u_light_count <= 0 || !sh.valid) return vec3(0.0);
+Shading load(ivec2 q) {
+    vec4 pos = texelFetch(u_gb_position, q, 0);
+    Surface s = make_surface(scene_material(int(pos.w + 0.5)), texelFetch(u_gb_albedo, q, 0).rgb);
+    return make_shading(pos.xyz, texelFetch(u_gb_normal, q, 0).xyz, texelFetch(u_gb_geonormal, q, 0).xyz, s,
+                        pos.w >= 0.0);
+}
+
+// ------------------------------------------------------------------ samples
+struct Sample { vec3 y; int li; vec3 n; vec3 Le; };
+struct Reservoir { Sample x; float wsum; float M; float W; float own; };  // own: p^ at the surface it was made for
+
+vec2 oct_encode(vec3 n) {
+    n /= (abs(n.x) + abs(n.y) + abs(n.z) + 1e-20);
+    vec2 e = n.z >= 0.0 ? n.xy : (1.0 - abs(n.yx)) * vec2(n.x >= 0.0 ? 1.0 : -1.0, n.y >= 0.0 ? 1.0 : -1.0);
+    return e;
+}
+
+vec3 oct_decode(vec2 e) {
+    vec3 n = vec3(e, 1.0 - abs(e.x) - abs(e.y));
+    if (n.z < 0.0) n.xy = (1.0 - abs(n.yx)) * vec2(n.x >= 0.0 ? 1.0 : -1.0, n.y >= 0.0 ? 1.0 : -1.0);
+    return normalize(n + vec3(0.0, 0.0, 1e-20));
+}
+
+bool finite4(vec4 v) { return !any(isnan(v)) && !any(isinf(v)); }
+
+// A stored reservoir; anything non-finite or out of range reads as empty (NaN in history is
+// gone after one frame).
+Reservoir fetch(ivec2 q) {
+    Reservoir r;
+    vec4 a = texelFetch(u_in_y, q, 0), m = texelFetch(u_in_meta, q, 0), l = texelFetch(u_in_le, q, 0);
+    r.x.y = a.xyz; r.x.li = int(floor(a.w + 0.5)); r.x.n = oct_decode(m.zw); r.x.Le = l.rgb;
+    r.wsum = 0.0; r.W = m.x; r.M = m.y; r.own = l.w;
+    if (!finite4(a) || !finite4(m) || !finite4(l) || r.x.li < -1 || r.x.li >= u_light_count || m.x <= 0.0
+        || m.y <= 0.0 || any(lessThan(l, vec4(0.0)))) {
+        r.W = 0.0; r.M = (finite4(m) && m.y > 0.0) ? m.y : 0.0; r.x.li = -1; r.x.Le = vec3(0.0);
+    }
+    return r;
+}
+
+bool is_direction(Sample x) { return x.li < 0 || int(lights[x.li].pos_type.w + 0.5) == LIGHT_SUN; }
+
+// Contribution c_x(y) (unshadowed) at a shading point, with the shadow ray it needs.
+// G = the geometry factor in it (1 / d^2 for delta points, 1 for directions).
+vec3 contrib_g(Shading sh, Sample x, out vec3 dir, out float dist, out bool casts, out float G) {
+    dir = vec3(0.0, 0.0, 1.0); dist = 0.0; casts = false; G = 1.0;
+    if (!sh.valid || max3(x.Le) <= 0.0) return vec3(0.0);
+    vec3 Le = x.Le;
+    if (x.li < 0) {                       // the world, reached by a BSDF ray
+        dir = x.y; dist = T_INF; casts = true;
+    } else {
+        Light L = lights[x.li];
+        int type = int(L.pos_type.w + 0.5);
+        casts = L.axis_w.w > 0.5;
+        if (type == LIGHT_SUN) {
+            dir = x.y; dist = T_INF;
+        } else {
+            vec3 d = x.y - sh.p;
+            dist = length(d);
+            if (dist <= 1e-9) return vec3(0.0);
+            dir = d / dist;
+            float inv_d2 = 1.0 / (dist * dist);
+            if (type == LIGHT_POINT || type == LIGHT_SPOT) {
+                if (type == LIGHT_SPOT) Le *= spot_attenuation(L, normalize(sh.p - L.pos_type.xyz));
+                if (L.dir_radius.w > 0.0) {
+                    float cy = dot(x.n, -dir);
+                    if (cy <= 0.0) return vec3(0.0);  // the far side of the sphere
+                    G = cy * inv_d2;
+                } else {
+                    G = inv_d2;                          // delta point light: intensity / d^2
+                }
+            } else if (type == LIGHT_AREA) {
+                float cy = dot(x.n, -dir);
+                if (cy <= 0.0) return vec3(0.0);         // behind the emitting face
+                G = cy * inv_d2;
+            } else {
+                G = abs(dot(x.n, dir)) * inv_d2;        // emissive triangles: two-sided
+            }
+        }
+    }
+    if (dot(dir, sh.Ng) <= 0.0) return vec3(0.0);
+    BsdfEval fe = eval_principled(sh.s, sh.N, sh.V, dir);
+    vec3 c = (fe.diffuse + fe.glossy) * Le * G;
+    return (any(isnan(c)) || any(isinf(c))) ? vec3(0.0) : max(c, vec3(0.0));
+}
+
+vec3 contrib(Shading sh, Sample x, out vec3 dir, out float dist, out bool casts) {
+    float G;
+    return contrib_g(sh, x, dir, dist, casts, G);
+}
+
+// p^: the mean of the channels (not luminance: a blue light's contribution is 14x its
+// luminance, so luminance-proportional resampling leaves most of the per-channel variance)
+float tgt(vec3 c) { return (c.r + c.g + c.b) * (1.0 / 3.0); }
+
+float target(Shading sh, Sample x) {
+    vec3 d; float t; bool cs;
+    return tgt(contrib(sh, x, d, t, cs));
+}
+
+bool visible(Shading sh, Sample x) {
+    vec3 d; float t; bool casts;
+    vec3 c = contrib(sh, x, d, t, casts);
+    if (max3(c) <= 0.0) return false;
+    return !(casts && scene_occluded(sh.p, d, 0.0, t >= T_INF ? T_INF : t * (1.0 - 1e-4)));
+}
+
+// p^ with visibility at another surface (bias mode 2)
+float target_vis(Shading sh, Sample x, bool trace) {
+    vec3 d; float t; bool casts;
+    float ph = tgt(contrib(sh, x, d, t, casts));
+    if (ph > 0.0 && trace && casts && scene_occluded(sh.p, d, 0.0, t >= T_INF ? T_INF : t * (1.0 - 1e-4))) return 0.0;
+    return ph;
+}
+
+bool update(inout Reservoir r, Sample x, float w, float M, float xi) {
+    r.wsum += w;
+    r.M += M;
+    if (w > 0.0 && xi * r.wsum < w) { r.x = x; return true; }
+    return false;
+}
+
+Reservoir empty_reservoir() {
+    Reservoir r;
+    r.x.y = vec3(0.0); r.x.li = -1; r.x.n = vec3(0.0, 0.0, 1.0); r.x.Le = vec3(0.0);
+    r.wsum = 0.0; r.M = 0.0; r.W = 0.0; r.own = 0.0;
+    return r;
+}
+
+// ------------------------------------------------------------------ candidates
+// Solid-angle pdf with which light sampling (select_light + sample_light) produces sample x
+// from sh (delta lights: the selection probability).
+float light_strategy_pdf(Shading sh, Sample x, float mesh_tri_pdf) {
+    if (x.li < 0) return 0.0;
+    Light L = lights[x.li];
+    int type = int(L.pos_type.w + 0.5);
+    float sel = light_pdf(x.li);
+    if (type == LIGHT_SUN) return L.dir_radius.w <= 1e-6 ? sel : sel * cone_pdf(cos(L.dir_radius.w));
+    if (type == LIGHT_POINT || type == LIGHT_SPOT) {
+        float r = L.dir_radius.w;
+        if (r <= 0.0) return sel;
+        vec3 toc = L.pos_type.xyz - sh.p;
+        float d2 = dot(toc, toc);
+        if (d2 <= r * r) return 0.0;
+        return sel * cone_pdf(sqrt(max(0.0, 1.0 - r * r / d2)));
+    }
+    if (type == LIGHT_AREA) return sel * area_to_solid_angle_pdf(sh.p, x.y, x.n, max(L.axis_v.w, 1e-12));
+    return sel * mesh_tri_pdf;
+}
+
+bool is_delta(Sample x) {
+    if (x.li < 0) return false;
+    Light L = lights[x.li];
+    int type = int(L.pos_type.w + 0.5);
+    return (type == LIGHT_POINT || type == LIGHT_SPOT || type == LIGHT_SUN) && L.dir_radius.w <= 1e-6;
+}
+
+// Can a BSDF candidate produce x? Emissive triangles (found through the BVH) always; area,
+// sphere and sun-disk lights only when u_bsdf_analytic (the host turns it off above
+// bsdf_light_max such lights: each BSDF ray would test them all); delta lights never. A
+// strategy that cannot produce a sample has pdf 0 for it, so the MIS'd weights stay unbiased.
+bool bsdf_finds(Sample x) {
+    if (x.li < 0) return true;
+    int type = int(lights[x.li].pos_type.w + 0.5);
+    return type == LIGHT_MESH || (u_bsdf_analytic == 1 && !is_delta(x));
+}
+
+// One light sample by power as a Sample; pl = its solid-angle pdf (delta: selection prob.)
+bool light_candidate(Shading sh, vec4 u, out Sample x, out float pl) {
+    x.li = -1; x.y = vec3(0.0); x.n = vec3(0.0, 0.0, 1.0); x.Le = vec3(0.0); pl = 0.0;
+    if (u_light_count <= 0) return false;
     float sel;
     int li = select_light(u.x, sel);
     Light L = lights[li];
     LightSample ls = sample_light(L, sh.p, u.yz, u.w);
-    if (ls.pdf <= 0.0 || sel <= 0.0 || dot(ls.dir, sh.Ng) <= 0.0) return vec3(0.0);
-    BsdfEval fe = eval_principled(sh.s, sh.N, sh.V, ls.dir);
-    vec3 f = fe.diffuse + fe.glossy;
-    dir = ls.dir; dist = ls.dist; shadows = L.axis_w.w > 0.5;
-    vec3 c = f * ls.Li / (sel * ls.pdf);
-    return (any(isnan(c)) || any(isinf(c))) ? vec3(0.0) : max(c, vec3(0.0));
-}
-
-float target(Shading sh, vec4 u) {
-    vec3 d; float t; bool sh_;
-    return luminance(contrib(sh, u, d, t, sh_));
-}
-
-bool visible(Shading sh, vec4 u) {
-    vec3 d; float t; bool casts;
-    vec3 c = contrib(sh, u, d, t, casts);
-    if (max3(c) <= 0.0) return false;
-    return !(casts && scene_occluded(sh.p, d, 0.0, t * (1.0 - 1e-4)));
-}
-
-struct Reservoir { vec4 u; float wsum; float M; float W; };
-
-bool update(inout Reservoir r, vec4 u, float w, float M, float xi) {
-    r.wsum += w;
-    r.M += M;
-    if (w > 0.0 && xi * r.wsum < w) { r.u = u; return true; }
-    return false;
-}
-
-vec4 u_finite(vec4 v) { return (any(isnan(v)) || any(isinf(v))) ? vec4(0.0) : clamp(v, 0.0, 0.99999994); }
-
-void main() {
-    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
-    ivec2 size = imageSize(o_u);
-    if (any(greaterThanEqual(px, size))) return;
-    Rng rng = rng_init(uvec2(px), u_sample * 2u + uint(u_stage), u_seed);
-    Shading sh = load(px);
-    if (!sh.valid) {
-        imageStore(o_u, px, vec4(0.0));
-        imageStore(o_meta, px, vec4(0.0));
-        if (u_stage == 1) {
-            imageStore(o_color, px, vec4(u_rt_world, 1.0));
-            imageStore(o_pos, px, vec4(0.0, 0.0, 0.0, -1.0));
-            imageStore(o_nrm, px, vec4(0.0));
+    if (ls.pdf <= 0.0 || sel <= 0.0) return false;
+    int type = int(L.pos_type.w + 0.5);
+    x.li = li;
+    pl = sel * ls.pdf;
+    if (type == LIGHT_SUN) {
+        x.y = ls.dir; x.Le = ls.Li;
+    } else if (type == LIGHT_POINT || type == LIGHT_SPOT) {
+        float r = L.dir_radius.w;
+        if (r <= 0.0) {
+            x.y = L.pos_type.xyz; x.Le = L.color.rgb;
+        } else {
+            x.y = sh.p + ls.dir * ls.dist;
+            x.n = normalize(x.y - L.pos_type.xyz);
+            x.Le = L.color.rgb / (PI * r * r);
         }
-        return;
+    } else if (type == LIGHT_AREA) {
+        x.y = sh.p + ls.dir * ls.dist; x.n = L.dir_radius.xyz; x.Le = ls.Li;
+    } else {  // mesh light: the triangle sample_light chose (same u.w)
+        float tp;
+        int e = pick_emitter(L, u.w, tp);
+        Emitter em = emitters[e];
+        x.y = sh.p + ls.dir * ls.dist;
+        x.n = normalize(cross(em.p1.xyz - em.p0.xyz, em.p2.xyz - em.p0.xyz));
+        x.Le = em.radiance.rgb;
     }
-    if (u_stage == 1 && u_baseline_spp > 0) {  // light sampling by power, no reuse
-        vec3 acc = vec3(0.0);
-        for (int k = 0; k < u_baseline_spp; ++k) acc += shade_direct_at(sh.s, sh.p, sh.N, sh.Ng, sh.V, rng, false);
-        imageStore(o_color, px, vec4(acc / float(u_baseline_spp) + sh.s.emission, 1.0));
-        imageStore(o_u, px, vec4(0.0));
-        imageStore(o_meta, px, vec4(0.0));
-        imageStore(o_pos, px, vec4(sh.P, -1.0));
-        imageStore(o_nrm, px, vec4(sh.N, 0.0));
-        return;
-    }
-    Reservoir r;
-    r.u = vec4(0.0); r.wsum = 0.0; r.M = 0.0; r.W = 0.0;
-    if (u_stage == 0) {
-        for (int k = 0; k < u_candidates; ++k) {
-            vec4 u = rng_next4(rng);
-            update(r, u, target(sh, u), 1.0, rng_next4(rng).x);
+    return true;
+}
+
+// One BSDF sample as a Sample: the nearest area/sphere light the ray crosses before the first
+// surface, else the emissive triangle it hits (its mesh light), else on a miss a sun disk or
+// the world. pb = BSDF pdf (solid angle), pl = the light strategy's pdf of the same sample.
+bool bsdf_candidate(Shading sh, vec3 u, out Sample x, out float pb, out float pl) {
+    x.li = -1; x.y = vec3(0.0); x.n = vec3(0.0, 0.0, 1.0); x.Le = vec3(0.0); pl = 0.0;
+    vec3 d = sample_principled(sh.s, sh.N, sh.V, u, pb);
+    if (pb <= 0.0 || dot(d, sh.Ng) <= 0.0) return false;
+    SurfaceHit hs;
+    bool hit = scene_trace(sh.p, d, 0.0, T_INF, hs);
+    float tbest = hit ? hs.t : T_INF;
+    int best = -1;
+    for (int i = 0; i < u_light_count && u_bsdf_analytic == 1; ++i) {
+        Light L = lights[i];
+        int type = int(L.pos_type.w + 0.5);
+        float t = -1.0;
+        if (type == LIGHT_AREA) t = intersect_area_light(L, sh.p, d);
+        else if ((type == LIGHT_POINT || type == LIGHT_SPOT) && L.dir_radius.w > 0.0) {
+            vec3 toc = L.pos_type.xyz - sh.p;
+            if (dot(toc, toc) > L.dir_radius.w * L.dir_radius.w) t = intersect_sphere(L.pos_type.xyz, L.dir_radius.w, sh.p, d);
         }
-        float ph = target(sh, r.u);
-        r.W = ph > 0.0 ? r.wsum / (r.M * ph) : 0.0;
-        if (r.W > 0.0 && !visible(sh, r.u)) r.W = 0.0;  // visibility reuse
-        // temporal reuse
-        float Mcur = r.M;
-        if (u_temporal == 1 && u_reset == 0) {
-            vec2 prev = vec2(px) + 0.5 - texelFetch(u_gb_motion, px, 0).xy;
-            ivec2 q = ivec2(floor(prev));
-            if (all(greaterThanEqual(q, ivec2(0))) && all(lessThan(q, size))) {
-                vec4 pp = texelFetch(u_prev_pos, q, 0);
-                vec3 pn = texelFetch(u_prev_nrm, q, 0).xyz;
-                vec4 pm = texelFetch(u_in_meta, q, 0);
-                vec4 pu = u_finite(texelFetch(u_in_u, q, 0));
-                bool ok = pp.w >= 0.0 && !any(isnan(pm)) && !any(isinf(pm)) && !any(isnan(pp)) && !any(isnan(pn))
-                          && abs(dot(sh.N, pp.xyz - sh.P)) < 0.02 * (1.0 + length(sh.P - u_camera_pos))
-                          && dot(pn, sh.N) > 0.9;
-                if (ok && pm.y > 0.0) {
-                    float Mp = min(pm.y, u_m_cap * float(u_candidates));
-                    float Wp = max(pm.x, 0.0);
-                    // fold the current reservoir (weight p^ W M) and the previous one
-                    Reservoir t;
-                    t.u = r.u; t.wsum = 0.0; t.M = 0.0; t.W = 0.0;
-                    update(t, r.u, ph * r.W * Mcur, Mcur, 0.0);
-                    float php = target(sh, pu);
-                    update(t, pu, php * Wp * Mp, Mp, rng_next4(rng).y);
-                    float pt = target(sh, t.u);
-                    float Z = t.M;
-                    if (u_bias_mode >= 1) {  // prior surface from the stored position/normal
-                        Shading ps = sh;
-                        ps.P = pp.xyz; ps.N = pn; ps.Ng = pn;
-                        ps.V = normalize(u_camera_pos - pp.xyz);
-                        ps.p = pp.xyz + pn * (1e-4 * (1.0 + length(pp.xyz)));
-                        Z = (pt > 0.0 ? Mcur : 0.0) + (target(ps, t.u) > 0.0 ? Mp : 0.0);
-                    }
-                    r = t;
-                    r.W = (pt > 0.0 && Z > 0.0) ? r.wsum / (Z * pt) : 0.0;
+        if (t > 0.0 && t < tbest) { tbest = t; best = i; }
+    }
+    if (best >= 0) {
+        Light L = lights[best];
+        int type = int(L.pos_type.w + 0.5);
+        x.li = best;
+        x.y = sh.p + d * tbest;
+        if (type == LIGHT_AREA) { x.n = L.dir_radius.xyz; x.Le = L.color.rgb; }
+        else { x.n = normalize(x.y - L.pos_type.xyz); x.Le = L.color.rgb / (PI * L.dir_radius.w * L.dir_radius.w); }
+        pl = light_strategy_pdf(sh, x, 0.0);
+        return true;
+    }
+    if (hit) {
+        int li = mesh_light_of(hs.instance);
+        if (li < 0 || max3(hs.bsdf.emission) <= 0.0) return false;
+        Light L = lights[li];
+        RtInstance inst = rt_instances[hs.instance];
+        vec3 p0 = (inst.object_to_world * vec4(rt_verts[3 * hs.prim].xyz, 1.0)).xyz;
+        vec3 p1 = (inst.object_to_world * vec4(rt_verts[3 * hs.prim + 1].xyz, 1.0)).xyz;
+        vec3 p2 = (inst.object_to_world * vec4(rt_verts[3 * hs.prim + 2].xyz, 1.0)).xyz;
+        float area = 0.5 * length(cross(p1 - p0, p2 - p0));
+        vec3 E = hs.bsdf.emission;
+        float tri_prob = area * (E.r + E.g + E.b) / 3.0 * PI / max(L.color.w, 1e-20);
+        x.li = li; x.y = hs.position; x.n = hs.geo_normal; x.Le = E;
+        pl = light_pdf(li) * tri_prob * area_to_solid_angle_pdf(sh.p, hs.position, hs.geo_normal, area);
+        return true;
+    }
+    for (int i = 0; i < u_light_count && u_bsdf_analytic == 1; ++i) {  // a miss: sun disks, then the world
+        Light L = lights[i];
+        if (int(L.pos_type.w + 0.5) != LIGHT_SUN || L.dir_radius.w <= 1e-6) continue;
+        if (dot(d, -L.dir_radius.xyz) >= cos(L.dir_radius.w)) {
+            float sa = sin(L.dir_radius.w);
+            x.li = i; x.y = d; x.Le = L.color.rgb / (PI * sa * sa);
+            pl = light_strategy_pdf(sh, x, 0.0);
+            return true;
+        }
+    }
+    if (max3(u_rt_world) <= 0.0) return false;
+    x.li = -1; x.y = d; x.Le = u_rt_world;
+    return true;
+}
+
+// RIS over the candidates with MIS'd candidate pdfs (balance heuristic over the strategies)
+Reservoir candidates(Shading sh, inout Rng rng) {
+    Reservoir r = empty_reservoir();
+    float ML = float(u_light_count > 0 ? u_light_cands : 0), MB = float(u_bsdf_cands);
+    for (int k = 0; k < int(ML); ++k) {
+        vec4 u = rng_next4(rng);
+        float xi = rng_next4(rng).x;
+        Sample x; float pl;
+        float w = 0.0;
+        if (light_candidate(sh, u, x, pl)) {
+            vec3 d; float t, G; bool cs;
+            vec3 c = contrib_g(sh, x, d, t, cs, G);
+            if (max3(c) > 0.0) {
+                if (is_delta(x)) {
+                    w = tgt(c) / (ML * pl);  // discrete measure; BSDF rays never find it
+                } else {
+                    // p^ / (M_L p_L + M_B p_B) in y's measure; both pdfs are solid-angle, times G
+                    float pb = (MB > 0.0 && bsdf_finds(x)) ? pdf_principled(sh.s, sh.N, sh.V, d) : 0.0;
+                    w = tgt(c) / (G * (ML * pl + MB * pb));
                 }
             }
         }
-        imageStore(o_u, px, r.u);
-        imageStore(o_meta, px, vec4(r.W, r.M, 0.0, 0.0));
+        update(r, x, w, 1.0, xi);
+    }
+    for (int k = 0; k < int(MB); ++k) {
+        vec4 u = rng_next4(rng);
+        Sample x; float pb, pl;
+        float w = 0.0;
+        if (bsdf_candidate(sh, u.xyz, x, pb, pl)) {
+            vec3 d; float t, G; bool cs;
+            vec3 c = contrib_g(sh, x, d, t, cs, G);
+            if (max3(c) > 0.0) w = tgt(c) / (G * (ML * pl + MB * pb));
+        }
+        update(r, x, w, 1.0, u.w);
+    }
+    float ph = target(sh, r.x);
+    r.W = ph > 0.0 ? r.wsum / ph : 0.0;  // the 1/M is inside the balance-heuristic weights
+    return r;
+}
+
+#if RESTIR_STAGE < 2
+void store_reservoir(ivec2 px, Reservoir r) {
+    bool ok = r.W > 0.0 && r.x.li >= -1;
+    imageStore(o_y, px, vec4(r.x.y, float(r.x.li)));
+    imageStore(o_meta, px, vec4(ok ? r.W : 0.0, r.M, oct_encode(r.x.n)));
+    imageStore(o_le, px, vec4(r.x.Le, ok ? r.own : 0.0));
+}
+#endif
+
+// Pairwise MIS weights (Bitterli 2022, Lin et al. 2022) for combining a canonical reservoir c
+// (this pixel, M_c) with n others (M_i, made at surfaces x_i): for a sample y,
+//   A_i = M_i p^_i(y) [V_i(y)],  B = (M_c / n) p^_c(y),
+//   m_i(y) = A_i / (n (A_i + B)),   m_c(y) = sum_i B / (n (B + A_i)),
+// which sum to 1 wherever p^_c(y) > 0: unbiased over the supports the A_i describe (with
+// V_i: the visible parts, which is what visibility reuse leaves a reservoir; without it, a
+// sample hidden at x_i is still counted there, so the estimate is darker near shadows).
+// Bias mode 0 (1/M) uses m_i = M_i / sum M instead (biased: darker wherever another surface
+// cannot produce the sample).
+float pair_other(float Ai, float B, float n) { return Ai + B > 0.0 ? Ai / (n * (Ai + B)) : 0.0; }
+float pair_canon(float Ai, float B, float n) { return Ai + B > 0.0 ? B / (n * (B + Ai)) : 1.0 / n; }
+
+void main() {
+    ivec2 px = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 size = textureSize(u_gb_position, 0);
+    if (any(greaterThanEqual(px, size))) return;
+    Rng rng = rng_init(uvec2(px), u_sample * 3u + uint(RESTIR_STAGE), u_seed);
+    Shading sh = load(px);
+#if RESTIR_STAGE == 0
+    imageStore(o_emit, px, vec4(sh.valid ? sh.s.emission : vec3(0.0), 1.0));
+    if (!sh.valid) {
+        store_reservoir(px, empty_reservoir());
+        imageStore(o_pos, px, vec4(0.0, 0.0, 0.0, -1.0));
+        imageStore(o_nrm, px, vec4(0.0));
         return;
     }
-    // STAGE 1: spatial reuse
-    vec4 cu = u_finite(texelFetch(u_in_u, px, 0));
-    vec4 cm = texelFetch(u_in_meta, px, 0);
-    float Mc = max(cm.y, 0.0), Wc = max(cm.x, 0.0);
-    update(r, cu, target(sh, cu) * Wc * Mc, Mc, 0.0);
-    ivec2 nb[16];
+    Reservoir r = candidates(sh, rng);
+    if (r.W > 0.0 && !visible(sh, r.x)) r.W = 0.0;  // visibility reuse
+    float Mc = r.M;
+    if (u_temporal == 1 && u_reset == 0) {
+        vec2 prev = vec2(px) + 0.5 - texelFetch(u_gb_motion, px, 0).xy;
+        ivec2 q = ivec2(floor(prev));
+        if (all(greaterThanEqual(q, ivec2(0))) && all(lessThan(q, size))) {
+            vec4 pp = texelFetch(u_prev_pos, q, 0);
+            vec4 pnn = texelFetch(u_prev_nrm, q, 0);  // octahedral shading and geometric normals
+            vec3 pn = oct_decode(pnn.xy), png = oct_decode(pnn.zw);
+            float dist = length(sh.P - u_camera_pos);
+            bool ok = finite4(pp) && finite4(pnn) && pp.w >= 0.0
+                      && abs(dot(sh.N, pp.xyz - sh.P)) < 0.02 * (1.0 + dist)   // plane distance
+                      && length(pp.xyz - sh.P) < 0.1 * dist                     // same neighbourhood
+                      && dot(pn, sh.N) > 0.9;                                   // normal
+            Reservoir p = fetch(q);
+            if (ok && p.M > 0.0) {
+                float Mp = min(p.M, u_m_cap * Mc);
+                Shading ps = make_shading(pp.xyz, pn, png, sh.s, true);  // the surface it was made for
+                float pc_c = target(sh, r.x), pc_p = target(sh, p.x);
+                float mc = Mc / (Mc + Mp), mp = Mp / (Mc + Mp);  // 1/M
+                if (u_bias_mode >= 1) {
+                    // two reservoirs: the pairwise weights reduce to the balance heuristic
+                    float Ac = Mc * pc_c, Ap = Mp * target_vis(ps, r.x, u_bias_mode == 2);
+                    mc = Ac + Ap > 0.0 ? Ac / (Ac + Ap) : 0.0;
+                    float Bp = Mp * p.own, Bc = Mc * pc_p;  // p.own: p^ where p.x was kept (visible there)
+                    mp = Bp + Bc > 0.0 ? Bp / (Bp + Bc) : 0.0;
+                }
+                Reservoir t = empty_reservoir();
+                update(t, r.x, mc * pc_c * r.W, Mc, 0.0);
+                update(t, p.x, mp * pc_p * p.W, Mp, rng_next4(rng).x);
+                float ph = target(sh, t.x);
+                t.W = ph > 0.0 ? t.wsum / ph : 0.0;
+                r = t;
+            }
+        }
+    }
+    r.own = target(sh, r.x);
+    store_reservoir(px, r);
+    imageStore(o_pos, px, vec4(sh.P, 0.0));
+    imageStore(o_nrm, px, vec4(oct_encode(sh.N), oct_encode(sh.Ng)));
+#elif RESTIR_STAGE == 1
+    if (!sh.valid) {
+        store_reservoir(px, empty_reservoir());
+        imageStore(o_color, px, vec4(u_rt_world, 1.0));
+        imageStore(o_direct, px, vec4(0.0, 0.0, 0.0, 1.0));
+        imageStore(o_dbg_w, px, vec4(0.0, 0.0, 0.0, 1.0));
+        imageStore(o_dbg_m, px, vec4(0.0, 0.0, 0.0, 1.0));
+        return;
+    }
+    // spatial reuse: the canonical reservoir c (this pixel, after temporal reuse) and up to
+    // u_spatial neighbours' (this frame's, after theirs)
+    Reservoir c = fetch(px);
+    Reservoir nbr[16];
+    Shading nsh[16];
     int n = 0;
+    float dp = length(sh.P - u_camera_pos);
+    float Msum = c.M;
     for (int k = 0; k < u_spatial && k < 16; ++k) {
         vec4 xi = rng_next4(rng);
-        float a = 2.0 * PI * xi.x, rad = u_radius * sqrt(xi.y);
+        float a = 2.0 * PI * xi.x, rad = max(u_radius_min, u_radius * float(max(size.x, size.y))) * sqrt(xi.y);
         ivec2 q = px + ivec2(round(vec2(cos(a), sin(a)) * rad));
         if (q == px || any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
         vec4 pq = texelFetch(u_gb_position, q, 0);
         if (pq.w < 0.0) continue;
         vec3 nq = texelFetch(u_gb_normal, q, 0).xyz;
-        float dq = length(pq.xyz - u_camera_pos), dp = length(sh.P - u_camera_pos);
-        if (abs(dq - dp) > 0.1 * dp || dot(nq, sh.N) < 0.9) continue;  // depth / normal tests
-        vec4 qu = u_finite(texelFetch(u_in_u, q, 0));
-        vec4 qm = texelFetch(u_in_meta, q, 0);
-        if (any(isnan(qm)) || any(isinf(qm))) continue;
-        update(r, qu, target(sh, qu) * max(qm.x, 0.0) * max(qm.y, 0.0), max(qm.y, 0.0), xi.z);
-        nb[n++] = q;
+        if (abs(length(pq.xyz - u_camera_pos) - dp) > 0.1 * dp || dot(nq, sh.N) < 0.9) continue;  // depth, normal
+        Reservoir rq = fetch(q);
+        if (rq.M <= 0.0) continue;
+        nbr[n] = rq;
+        nsh[n] = load(q);
+        Msum += rq.M;
+        ++n;
     }
-    float ph = target(sh, r.u);
-    float Z = r.M;
-    if (u_bias_mode >= 1) {
-        Z = ph > 0.0 ? Mc : 0.0;
-        for (int k = 0; k < n; ++k) {
-            Shading qs = load(nb[k]);
-            float Mq = max(texelFetch(u_in_meta, nb[k], 0).y, 0.0);
-            bool ok = target(qs, r.u) > 0.0;
-            if (ok && u_bias_mode == 2) ok = visible(qs, r.u);
-            if (ok) Z += Mq;
+    float fn = float(max(n, 1));
+    float Bc = (c.M / fn);
+    // canonical sample: its weight against every neighbour
+    vec3 dc; float tc; bool csc;
+    vec3 cc = contrib(sh, c.x, dc, tc, csc);
+    float pcc = tgt(cc);
+    float m_c = n == 0 ? 1.0 : 0.0;
+    if (u_bias_mode == 0) m_c = c.M / Msum;
+    else if (pcc > 0.0) for (int k = 0; k < n; ++k)
+        m_c += pair_canon(nbr[k].M * target_vis(nsh[k], c.x, u_bias_mode == 2), Bc * pcc, fn);
+    Reservoir r = empty_reservoir();
+    update(r, c.x, m_c * pcc * c.W, c.M, 0.0);
+    // shading: every input sample weighted by its MIS weight (the expectation of the
+    // resampled estimate over which input is kept: same mean, less noise), or only the kept one
+    vec3 L = vec3(0.0);
+    bool shade_all = u_shade_all == 1;
+    bool sel_vis = false;  // visibility of the kept sample, when shade_all traced it
+    if (shade_all && c.W > 0.0 && pcc > 0.0) {
+        sel_vis = !(csc && scene_occluded(sh.p, dc, 0.0, tc >= T_INF ? T_INF : tc * (1.0 - 1e-4)));
+        if (sel_vis) L += m_c * cc * c.W;
+    }
+    for (int k = 0; k < n; ++k) {
+        vec3 d; float t; bool cs;
+        vec3 ck = contrib(sh, nbr[k].x, d, t, cs);
+        float pck = tgt(ck);
+        float m_k = u_bias_mode == 0 ? nbr[k].M / Msum : pair_other(nbr[k].M * nbr[k].own, Bc * pck, fn);
+        float xi = rng_next4(rng).x;
+        bool vk = false;
+        if (shade_all && nbr[k].W > 0.0 && pck > 0.0 && m_k > 0.0) {
+            vk = !(cs && scene_occluded(sh.p, d, 0.0, t >= T_INF ? T_INF : t * (1.0 - 1e-4)));
+            if (vk) L += m_k * ck * nbr[k].W;
+        }
+        if (update(r, nbr[k].x, m_k * pck * nbr[k].W, nbr[k].M, xi)) sel_vis = vk;
+    }
+    r.M = Msum;
+    float ph = target(sh, r.x);
+    r.W = ph > 0.0 ? r.wsum / ph : 0.0;
+    r.own = ph;
+    bool vis = r.W > 0.0 && sel_vis;
+    if (!shade_all) {
+        vec3 d; float t; bool casts;
+        vec3 cr = contrib(sh, r.x, d, t, casts);
+        vis = r.W > 0.0 && max3(cr) > 0.0
+              && !(casts && scene_occluded(sh.p, d, 0.0, t >= T_INF ? T_INF : t * (1.0 - 1e-4)));
+        L = vis ? cr * r.W : vec3(0.0);
+    }
+    L = sanitize(L);
+    imageStore(o_color, px, vec4(L + sh.s.emission, 1.0));
+    imageStore(o_direct, px, vec4(L, 1.0));
+    imageStore(o_dbg_w, px, vec4(vec3(r.W), 1.0));
+    imageStore(o_dbg_m, px, vec4(vec3(r.M), 1.0));
+    if (!vis) r.W = 0.0;  // final visibility: a hidden sample does not live on in the history
+    store_reservoir(px, r);
+#else
+    if (!sh.valid) {
+        imageStore(o_color, px, vec4(u_rt_world, 1.0));
+        imageStore(o_direct, px, vec4(0.0, 0.0, 0.0, 1.0));
+        imageStore(o_emit, px, vec4(0.0, 0.0, 0.0, 1.0));
+        return;
+    }
+    vec3 acc = vec3(0.0);
+    int spp = max(u_baseline_spp, 1);
+    for (int k = 0; k < spp; ++k) {
+        acc += shade_direct_at(sh.s, sh.p, sh.N, sh.Ng, sh.V, rng, u_baseline_bsdf == 2);
+        if (u_baseline_bsdf == 1) {  // the world, which light sampling does not cover, by one BSDF ray
+            float pdf;
+            vec3 dir = sample_principled(sh.s, sh.N, sh.V, rng_next4(rng).xyz, pdf);
+            if (pdf > 0.0 && dot(dir, sh.Ng) > 0.0 && max3(u_rt_world) > 0.0 && !scene_occluded(sh.p, dir, 0.0, T_INF)) {
+                BsdfEval fe = eval_principled(sh.s, sh.N, sh.V, dir);
+                acc += sanitize((fe.diffuse + fe.glossy) * u_rt_world / pdf);
+            }
+        } else if (u_baseline_bsdf == 2) {  // the BSDF half of MIS: lights crossed, emissive surfaces, the world
+            float pdf;
+            vec3 dir = sample_principled(sh.s, sh.N, sh.V, rng_next4(rng).xyz, pdf);
+            if (pdf > 0.0 && dot(dir, sh.Ng) > 0.0) {
+                SurfaceHit hs;
+                bool hit = scene_trace(sh.p, dir, 0.0, T_INF, hs);
+                BsdfEval fe = eval_principled(sh.s, sh.N, sh.V, dir);
+                acc += sanitize((fe.diffuse + fe.glossy) * bsdf_hit_light_mis(sh.p, dir, 0.0, hit, hs, pdf, true) / pdf);
+            }
         }
     }
-    r.W = (ph > 0.0 && Z > 0.0) ? r.wsum / (Z * ph) : 0.0;
-    vec3 d; float t; bool casts;
-    vec3 c = contrib(sh, r.u, d, t, casts);
-    bool vis = max3(c) > 0.0 && !(casts && scene_occluded(sh.p, d, 0.0, t * (1.0 - 1e-4)));
-    vec3 L = vis ? c * r.W : vec3(0.0);
-    imageStore(o_color, px, vec4(sanitize(L) + sh.s.emission, 1.0));
-    imageStore(o_u, px, r.u);
-    imageStore(o_meta, px, vec4(r.W, r.M, 0.0, 0.0));
-    imageStore(o_pos, px, vec4(sh.P, 0.0));
-    imageStore(o_nrm, px, vec4(sh.N, 0.0));
+    vec3 L = sanitize(acc / float(spp));
+    imageStore(o_color, px, vec4(L + sh.s.emission, 1.0));
+    imageStore(o_direct, px, vec4(L, 1.0));
+    imageStore(o_emit, px, vec4(sh.s.emission, 1.0));
+#endif
 }

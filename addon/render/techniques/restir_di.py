@@ -1,23 +1,25 @@
 """RESTIR_DI: direct light by spatiotemporal reservoir resampling (Bitterli et al. 2020).
 
-Passes: ``gbuffer`` → ``restir_di`` (passes/restir.py, shaders/restir/restir_di.comp): per
-pixel RIS over ``candidates`` light samples drawn by power from the shared sampler
-(select_light / sample_light: every light type and emissive triangles), visibility reuse,
-temporal reuse (M capped at ``m_cap`` x candidates), spatial reuse over ``spatial``
-neighbours in ``radius`` pixels, bias correction ``bias_mode`` (0 = 1/M, 1 = MIS-normalised,
-2 = ray-traced visibility); one shadow ray for the shading. 1 sample per pixel per frame.
-Compared with Cycles "direct". Docs: docs/techniques/RESTIR_DI.md.
+Passes: ``gbuffer`` → ``restir_di`` (passes/restir.py, shaders/restir/restir_di.comp). Per
+pixel per frame: RIS over ``candidates`` light samples drawn by power from the shared sampler
+(select_light / sample_light: every light type, emissive triangles) and ``bsdf_candidates``
+BSDF samples (emissive triangles, the world, and area/sphere/sun lights while the scene has at
+most ``bsdf_light_max`` of them), weighted with MIS'd candidate pdfs; visibility reuse;
+temporal reuse (reprojected, M capped at ``m_cap`` x the candidates); spatial reuse over
+``spatial`` neighbours (depth/normal tests) within ``radius`` x the image's larger side (at
+least ``radius_min`` px); bias correction ``bias_mode`` (0 = 1/M, 1 = MIS-normalised
+(pairwise MIS), 2 = ray-traced visibility); every spatial input shaded by its MIS weight
+(``shade_all``); final visibility (a hidden kept sample gets W = 0). Samples are points on
+lights (or directions), so reuse needs no Jacobian. Compared with Cycles "direct".
+Render passes: GI_Direct, Emit, and the debug views GI_ReservoirW and GI_ReservoirM.
+Docs and measurements: docs/techniques/RESTIR_DI.md.
 
-Quality ladder (candidates, spatial): 8/4, 32/8, 64/8, 64/16. Temporal reuse is implemented
-(``temporal=1``) but off by default: measured on many_lights it darkens the image (0.89 of
-the unbiased baseline's mean) and correlates frames so that 16 accumulated frames gain little;
-until that is found, spatial-only reuse is the default (unbiased mean, 4-5x lower relMSE).
-Not yet: BSDF-sampled candidates (glossy highlights of large lights rely on light samples).
+Quality ladder (candidates, spatial): 8/4, 32/8, 64/8, 64/16.
 """
 from __future__ import annotations
 
 from ..passes.gbuffer import GBufferPass
-from ..passes.restir import RestirDIPass
+from ..passes.restir import AOV_DIRECT, AOV_EMIT, DBG_M, DBG_W, RestirDIPass
 from . import Technique, register
 
 
@@ -30,7 +32,8 @@ class RESTIR_DI(Technique):
     reference = "direct"
     cost_rank = 200
     warmup_frames = 4
-    outputs = {}
+    # render passes: direct light, emission, and the debug views (the reservoir's W and M)
+    outputs = {"GI_Direct": AOV_DIRECT, "Emit": AOV_EMIT, "GI_ReservoirW": DBG_W, "GI_ReservoirM": DBG_M}
 
     def passes(self, quality):
         return [GBufferPass(quality), RestirDIPass(quality)]
