@@ -4,12 +4,10 @@ and as ``denoiser`` / ``use_taa`` options that end any technique's graph.
 Measured against Cycles (full, 256 spp, 40-48 px, cached references):
 * SVGF on the Cornell box and the sun-lit room, still camera, the frame shown after 16
   frames: relMSE <= 1/4 of the unfiltered 1-spp path tracer's (mean of 4 single frames).
-* Moving camera (a pan of 8 frames, then still): the error of the disoccluded pixels
-  (those not visible from the first pose) at 8 frames after the stop is within 1.5x of
-  (or below) a still camera's error after as many frames, for SVGF and TAA; the temporal
-  stability figure (mean |frame-to-frame difference| over the pan) is printed against
-  Cycles' and, for SVGF, asserted within 2x.
-* NaN written into every history texture is gone from image and history after one frame.
+* Moving camera: blender_tests/test_animation.py (gi_compare.py --animation, per frame).
+* NaN written into every history texture is gone from image and history after one frame;
+  the debug render passes (SVGF variance and history length, TAA history length) are there
+  and count the frames.
 * 200 frames of a moving camera stay finite and bounded (test_stability's bound).
 * ``denoiser``/``use_taa`` put the filters (and a G-buffer) into PT's graph; a bad
   denoiser id is a clear ValueError.
@@ -71,17 +69,6 @@ def release(sess):
     session.release_session(sess).result(timeout=60)
 
 
-def pan(sc, sd, dx):
-    """SceneData and the Blender scene with the camera moved by ``dx`` along its right axis."""
-    cam = sc.camera
-    right = cam.matrix_world.to_3x3().col[0]
-    cam.location = cam.location + right * dx
-    bpy.context.view_layer.update() if bpy.context.scene == sc else None
-    dg = evaluated_depsgraph(sc)
-    m = np.array(sc.camera.matrix_world, np.float32)
-    return dataclasses.replace(sd, camera=dataclasses.replace(sd.camera, matrix_world=m)), dg
-
-
 # ---------------------------------------------------------------- still camera
 @pytest.mark.parametrize("scene_name", ["cornell", "sunlit_room"])
 def test_svgf_still_quarter_of_pt(scene_name):
@@ -126,77 +113,7 @@ def test_atrous_and_taa_reduce_error_cornell():
 
 
 # ---------------------------------------------------------------- moving camera
-def _disoccluded(sd0, sd1, depth0, depth1):
-    """Pixels of pose 1 whose surface point was not visible from pose 0 (off-screen or hidden)."""
-    h, w = depth1.shape
-
-    def rays(cam):
-        inv = np.linalg.inv(cam.projection.astype(np.float64))
-        ys, xs = np.mgrid[0:h, 0:w]
-        ndc = np.stack([(xs + 0.5) / w * 2 - 1, (ys + 0.5) / h * 2 - 1, np.ones_like(xs, float), np.ones_like(xs, float)], -1)
-        v = ndc @ inv.T
-        d = v[..., :3] / v[..., 3:4]
-        d = d / np.linalg.norm(d, axis=-1, keepdims=True)
-        return d @ cam.matrix_world[:3, :3].astype(np.float64).T
-
-    c1 = sd1.camera
-    d = rays(c1)
-    fwd = c1.forward.astype(np.float64)
-    P = c1.position.astype(np.float64) + d * (depth1 / np.maximum(d @ fwd, 1e-6))[..., None]
-    c0 = sd0.camera
-    clip = np.concatenate([P, np.ones((h, w, 1))], -1) @ (c0.projection.astype(np.float64) @ c0.view.astype(np.float64)).T
-    uv = (clip[..., :2] / clip[..., 3:4] * 0.5 + 0.5) * np.array([w, h])
-    ix, iy = np.floor(uv[..., 0]).astype(int), np.floor(uv[..., 1]).astype(int)
-    inside = (ix >= 0) & (ix < w) & (iy >= 0) & (iy < h) & (clip[..., 3] > 0)
-    d0 = np.full((h, w), np.inf)
-    d0[inside] = depth0[iy[inside], ix[inside]]
-    dz = (P - c0.position.astype(np.float64)) @ c0.forward.astype(np.float64)
-    hidden = np.abs(d0 - dz) > 0.03 * np.maximum(dz, 1e-3)
-    return (~inside | hidden) & (depth1 < 1e9)
-
-
-@pytest.mark.parametrize("tech", ["SVGF", "TAA"])
-def test_moving_camera_no_ghosting(tech):
-    sc, sd0 = build("cornell")
-    n_move, n_after, step = 8, 8, 0.06
-    try:
-        poses, refs, sds = [], [], []
-        sd = sd0
-        for i in range(n_move + 1):
-            if i > 0:
-                sd, _ = pan(sc, sd, step)
-            sds.append(sd)
-            refs.append(get_reference(sc, "full", REF_SPP).image[..., :3])
-        ours, errs = [], []
-        sess = "mv_" + tech
-        for i in range(n_move + 1 + n_after):
-            k = min(i, n_move)
-            r = session.render(sds[k], tech, 1, 1, keep_history=True, warmup=False, session=sess)
-            ours.append(r.image[..., :3])
-            errs.append(relmse(r.image, refs[k]))
-            if i == 0:
-                depth0 = r.aovs["Depth"][..., 0]
-            depth_end = r.aovs["Depth"][..., 0]
-        release(sess)
-        still = frames(sds[-1], tech, n_after + 1, "st_" + tech)
-        release("st_" + tech)
-        mask = _disoccluded(sds[0], sds[-1], depth0, depth_end)
-        assert mask.sum() >= 20, "the pan must disocclude something"
-        e_moving = float(relmse_map(ours[-1], refs[-1])[mask].mean())
-        e_still = float(relmse_map(still[-1], refs[-1])[mask].mean())
-        stab_ours = float(np.mean([np.abs(ours[i + 1] - ours[i]).mean() for i in range(n_move)]))
-        stab_cy = float(np.mean([np.abs(refs[i + 1] - refs[i]).mean() for i in range(n_move)]))
-        save_png(ours[n_move], f"moving_{tech}_stop.png")
-        save_png(ours[-1], f"moving_{tech}_stop+{n_after}.png")
-        print(f"{tech}: relMSE per frame {', '.join(f'{e:.3f}' for e in errs)}; disoccluded ({int(mask.sum())} px) "
-              f"{n_after} frames after the stop {e_moving:.4f} vs still camera {e_still:.4f}; "
-              f"stability ours {stab_ours:.4f} vs Cycles {stab_cy:.4f} ({stab_ours / stab_cy:.2f}x)")
-        assert all(np.isfinite(o).all() for o in ours)
-        assert e_moving <= 1.5 * e_still + 1e-3, f"ghosting: disoccluded error {e_moving:.4f} vs still {e_still:.4f}"
-        if tech == "SVGF":
-            assert stab_ours <= 2.0 * stab_cy, f"temporal stability {stab_ours:.4f} > 2x Cycles' {stab_cy:.4f}"
-    finally:
-        bpy.data.scenes.remove(sc)
+# measured per frame against Cycles with gi_compare.py --animation: blender_tests/test_animation.py
 
 
 # ---------------------------------------------------------------- stability
@@ -236,7 +153,15 @@ def test_nan_in_history_gone_within_one_frame(tech):
     sc, sd = build("cornell", 24)
     sess = "nan_" + tech
     try:
-        frames(sd, tech, 3, sess)
+        r = [session.render(sd, tech, 1, 1, keep_history=True, warmup=False, session=sess) for _ in range(3)][-1]
+        # debug views: the history length counts the frames (SVGF: 3 after 3 frames; TAA starts a
+        # pixel with no history from its 3x3 same-surface mean, worth 2 frames: 4), over 32
+        surf = r.aovs["Depth"][..., 0] < 1e9
+        view = r.aovs["GI_SVGF_History" if tech == "SVGF" else "GI_TAA_History"][..., 0]
+        assert np.median(view[surf]) == pytest.approx((3 if tech == "SVGF" else 4) / 32, abs=1e-4), np.median(view[surf])
+        if tech == "SVGF":
+            var = r.aovs["GI_SVGF_Variance"]
+            assert np.isfinite(var).all() and var.min() >= 0 and var[surf].max() > 0
         names = _history_names(sess)
         assert names, f"{tech} keeps history"
         _poison(sess, names)

@@ -336,6 +336,7 @@ def run(scene, spec: AnimationSpec, techniques, *, reference, export, session, w
     cam = scene.camera
     if cam is None:
         raise ValueError(f"Scene '{scene.name}' has no camera: an animation needs one")
+    reference.ensure_oiio()  # the reference cache reads and writes EXR through Blender's OpenImageIO
     qual = quality or {}
 
     def export_now():

@@ -16,6 +16,8 @@ layout(binding = 0, rgba32f) uniform writeonly image2D o_illum;    // rgb illumi
 layout(binding = 1, rgba32f) uniform writeonly image2D o_moments;  // m1, m2, history length
 layout(binding = 2, rgba32f) uniform writeonly image2D o_pos;      // xyz, w = 1 surface
 layout(binding = 3, rgba32f) uniform writeonly image2D o_nrm;
+layout(binding = 4, rgba32f) uniform writeonly image2D o_dbg_var;  // debug view: variance (grey)
+layout(binding = 5, rgba32f) uniform writeonly image2D o_dbg_len;  // debug view: history length / max (grey)
 
 uniform sampler2D u_color;
 uniform sampler2D u_gb_albedo;
@@ -28,6 +30,7 @@ uniform sampler2D u_hist_pos;
 uniform sampler2D u_hist_nrm;
 uniform int u_reset;
 uniform float u_max_history;
+uniform float u_clamp_sigma;   // 0 = no history clamp (the paper)
 
 vec3 cur_illum(ivec2 q) {
     vec3 c = sanitize(texelFetch(u_color, q, 0).rgb);
@@ -44,6 +47,8 @@ void main() {
         imageStore(o_moments, px, vec4(0.0));
         imageStore(o_pos, px, vec4(0.0));
         imageStore(o_nrm, px, vec4(0.0));
+        imageStore(o_dbg_var, px, vec4(0.0, 0.0, 0.0, 1.0));
+        imageStore(o_dbg_len, px, vec4(0.0, 0.0, 0.0, 1.0));
         return;
     }
     vec3 P = pos.xyz;
@@ -83,6 +88,25 @@ void main() {
         hc /= wsum;
         hm /= wsum;
         hlen /= wsum;
+        if (u_clamp_sigma > 0.0) {
+            // history clamp (not in the paper): the fed-back history's luminance is kept within
+            // the 3x3 mean of this frame's illumination ± u_clamp_sigma x max(spatial sigma,
+            // temporal sigma from the moments). One noisy frame's box is wide (no bias on 1-spp
+            // input); a history that no longer matches what the samples say (a value carried in
+            // from another surface at a disocclusion edge, kept for max_history frames) is cut.
+            vec2 s1 = vec2(0.0);
+            for (int dy = -1; dy <= 1; ++dy)
+                for (int dx = -1; dx <= 1; ++dx) {
+                    float lq = luminance(cur_illum(clamp(px + ivec2(dx, dy), ivec2(0), size - 1)));
+                    s1 += vec2(lq, lq * lq);
+                }
+            s1 /= 9.0;
+            float sd = max(sqrt(max(s1.y - s1.x * s1.x, 0.0)), sqrt(max(hm.y - hm.x * hm.x, 0.0)));
+            float lh = luminance(hc);
+            float lo = s1.x - u_clamp_sigma * sd, hi = s1.x + u_clamp_sigma * sd;
+            if (lh > hi && lh > 0.0) hc *= hi / lh;
+            else if (lh < lo) hc = lh > 1e-6 ? hc * (lo / lh) : vec3(lo);
+        }
         len = min(hlen + 1.0, max(u_max_history, 1.0));
         float a = 1.0 / len;
         c = mix(hc, c, a);
@@ -113,4 +137,7 @@ void main() {
     imageStore(o_moments, px, vec4(mom, len, 0.0));
     imageStore(o_pos, px, vec4(P, 1.0));
     imageStore(o_nrm, px, vec4(N, 0.0));
+    float v = isnan(var) || isinf(var) ? 0.0 : var;
+    imageStore(o_dbg_var, px, vec4(vec3(v), 1.0));
+    imageStore(o_dbg_len, px, vec4(vec3(len / max(u_max_history, 1.0)), 1.0));
 }

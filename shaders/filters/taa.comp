@@ -1,36 +1,54 @@
-// taa.comp — temporal anti-aliasing (Karis 2014, "High quality temporal supersampling").
-// Camera jitter: the session's R2 sequence (see docs/techniques/TAA.md: R2 covers the pixel
-// more evenly than Halton(2,3) and the G-buffer and every pass already use it). History is
-// reprojected through gbuffer.motion (bilinear), converted to YCoCg and clipped towards the
-// centre of the 3x3 neighbourhood's YCoCg box (min/max, tightened by mean ± gamma sigma,
-// Salvi 2016), then blended with weight u_alpha using Karis' luminance weighting (1/(1+Y))
-// against flicker. Off-screen, background-changed or non-finite history is dropped.
+// taa.comp — temporal anti-aliasing (Karis 2014, "High quality temporal supersampling"),
+// made safe for a noisy (1-spp path-traced) input.
+// Camera jitter: the session's R2 sequence (see docs/techniques/TAA.md). Motion vectors are
+// unjittered, so the jitter needs no correction in the reprojection.
+// * Reprojection: the history's 2x2 bilinear taps through gbuffer.motion, each kept only if
+//   finite and geometrically the same surface (its stored position within 2 pixel
+//   footprints of this pixel's tangent plane; background stays background): disocclusion
+//   is detected by geometry, not by colour. The kept taps are renormalised.
+// * History length per pixel (alpha channel): the blend weight is max(u_alpha, 1/length),
+//   so a disoccluded pixel starts from its own samples and converges like a running mean.
+//   A disoccluded pixel starts from the mean of its 3x3 neighbours on the same surface
+//   (length 2), not from one noisy sample.
+// * Variance clipping (Salvi 2016) in linear YCoCg: the history is clipped towards the 3x3
+//   mean within gamma x max(spatial sigma, temporal sigma). The temporal sigma (from the
+//   luminance second moment kept in history) widens the box where the input's noise is heavy-
+//   tailed (light through a window reaching a wall by one bounce): a box from 9 single
+//   samples would otherwise cut the rare bright samples every frame and darken the result.
+//   No min/max box and no tone-mapped blend for the same reason (both are biased on noisy
+//   input); the blend is linear, so the running mean is the samples' mean.
+// Off-screen, geometrically different or non-finite history is dropped.
 #include "lib/common.glsl"
 #include "lib/screen.glsl"
 #include "filters/common.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
-layout(binding = 0, rgba32f) uniform writeonly image2D o_hist;   // rgb result, a = 1 valid
+layout(binding = 0, rgba32f) uniform writeonly image2D o_hist;   // rgb result, a = history length
+layout(binding = 1, rgba32f) uniform writeonly image2D o_aux;    // x = E[Y^2] (same average), yzw 0
+layout(binding = 2, rgba32f) uniform writeonly image2D o_pos;    // xyz, w = 1 surface / 0 background
+layout(binding = 3, rgba32f) uniform writeonly image2D o_debug;  // r = length / max, g = share clipped
 
 uniform sampler2D u_color;
-uniform sampler2D u_hist;       // last frame's result (bilinear)
+uniform sampler2D u_hist;
+uniform sampler2D u_hist_aux;
+uniform sampler2D u_hist_pos;
 uniform sampler2D u_gb_motion;
 uniform sampler2D u_gb_position;
+uniform sampler2D u_gb_normal;
 uniform int u_reset;
 uniform float u_alpha;
 uniform float u_gamma;
+uniform float u_max_history;
 
 vec3 rgb2ycocg(vec3 c) {
     return vec3(0.25 * c.r + 0.5 * c.g + 0.25 * c.b, 0.5 * c.r - 0.5 * c.b, -0.25 * c.r + 0.5 * c.g - 0.25 * c.b);
 }
 vec3 ycocg2rgb(vec3 c) { return vec3(c.x + c.y - c.z, c.x + c.z, c.x - c.y - c.z); }
 
-// clip q towards the box centre (Karis 2014: clip, not clamp, avoids the box-corner colours)
-vec3 clip_aabb(vec3 mn, vec3 mx, vec3 q) {
-    vec3 c = 0.5 * (mx + mn);
-    vec3 e = 0.5 * (mx - mn) + 1e-6;
+// clip q towards the box centre c with half-extent e (clip, not clamp: no box-corner colours)
+vec3 clip_box(vec3 c, vec3 e, vec3 q) {
     vec3 v = q - c;
-    vec3 a = abs(v / e);
+    vec3 a = abs(v / max(e, vec3(1e-6)));
     float m = max(a.x, max(a.y, a.z));
     return m > 1.0 ? c + v / m : q;
 }
@@ -40,38 +58,77 @@ void main() {
     ivec2 size = textureSize(u_color, 0);
     if (any(greaterThanEqual(px, size))) return;
     vec3 cur = sanitize(texelFetch(u_color, px, 0).rgb);
-    vec3 m1 = vec3(0.0), m2 = vec3(0.0), mn = vec3(1e30), mx = vec3(-1e30);
+    vec4 pos = texelFetch(u_gb_position, px, 0);
+    bool surf = pos.w >= 0.0;
+    vec3 P = pos.xyz;
+    vec3 N = normalize(texelFetch(u_gb_normal, px, 0).xyz + vec3(0.0, 0.0, 1e-12));
+    vec3 m1 = vec3(0.0), m2 = vec3(0.0), same = vec3(0.0);
+    float ns = 0.0;
     for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
             ivec2 q = clamp(px + ivec2(dx, dy), ivec2(0), size - 1);
-            // tone-mapped YCoCg (bright outliers of a noisy input do not widen the box)
             vec3 cq = sanitize(texelFetch(u_color, q, 0).rgb);
-            vec3 y = rgb2ycocg(cq / (1.0 + luminance(cq)));
+            vec3 y = rgb2ycocg(cq);
             m1 += y;
             m2 += y * y;
-            mn = min(mn, y);
-            mx = max(mx, y);
+            vec4 pq = texelFetch(u_gb_position, q, 0);
+            bool ok = surf ? (pq.w >= 0.0 && plane_pixels(P, N, pq.xyz) <= 2.0) : pq.w < 0.0;
+            if (ok) {
+                same += cq;
+                ns += 1.0;
+            }
         }
     m1 /= 9.0;
     vec3 sig = sqrt(max(m2 / 9.0 - m1 * m1, vec3(0.0)));
-    mn = max(mn, m1 - u_gamma * sig);
-    mx = min(mx, m1 + u_gamma * sig);
-    vec3 outc = cur;
+    float ycur = luminance(cur);
+
+    vec3 hc = vec3(0.0);
+    float hlen = 0.0, hm2 = 0.0, wsum = 0.0;
     if (u_reset == 0) {
-        vec2 uv = (vec2(px) + 0.5 - texelFetch(u_gb_motion, px, 0).xy) / vec2(size);
-        if (all(greaterThanEqual(uv, vec2(0.0))) && all(lessThanEqual(uv, vec2(1.0)))) {
-            vec4 h = texture(u_hist, uv);
-            if (finite4(h) && h.a > 0.5) {
-                vec3 hy = rgb2ycocg(max(h.rgb, vec3(0.0)) / (1.0 + luminance(max(h.rgb, vec3(0.0)))));
-                hy = clip_aabb(mn, mx, hy);
-                vec3 cy = rgb2ycocg(cur / (1.0 + luminance(cur)));
-                // blend in the tone-mapped space (Karis' 1/(1+Y) weighting), then invert
-                vec3 by = mix(hy, cy, u_alpha);
-                vec3 t = max(ycocg2rgb(by), vec3(0.0));
-                float lt = luminance(t);
-                outc = lt < 0.999 ? t / (1.0 - lt) : cur;
+        vec2 prev = vec2(px) + 0.5 - texelFetch(u_gb_motion, px, 0).xy - 0.5;
+        ivec2 b = ivec2(floor(prev));
+        vec2 f = prev - vec2(b);
+        for (int j = 0; j < 2; ++j)
+            for (int i = 0; i < 2; ++i) {
+                ivec2 t = b + ivec2(i, j);
+                if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, size))) continue;
+                vec4 h = texelFetch(u_hist, t, 0);
+                vec4 ha = texelFetch(u_hist_aux, t, 0);
+                vec4 hp = texelFetch(u_hist_pos, t, 0);
+                if (!(finite4(h) && finite4(ha) && finite4(hp)) || h.a < 1.0) continue;
+                if (surf ? (hp.w < 0.5 || plane_pixels(P, N, hp.xyz) > 2.0) : hp.w > 0.5) continue;
+                float w = (i == 0 ? 1.0 - f.x : f.x) * (j == 0 ? 1.0 - f.y : f.y);
+                hc += w * max(h.rgb, vec3(0.0));
+                hlen += w * h.a;
+                hm2 += w * max(ha.x, 0.0);
+                wsum += w;
             }
-        }
     }
-    imageStore(o_hist, px, vec4(sanitize(outc), 1.0));
+    vec3 outc;
+    float len, om2, clipped = 0.0;
+    if (wsum > 0.01) {
+        hc /= wsum;
+        hlen /= wsum;
+        hm2 /= wsum;
+        vec3 hy = rgb2ycocg(hc);
+        float sig_t = sqrt(max(hm2 - hy.x * hy.x, 0.0));
+        vec3 e = u_gamma * max(sig, vec3(sig_t));
+        vec3 cy = clip_box(m1, e, hy);
+        clipped = length(cy - hy) / (length(hy) + 1e-4);
+        len = min(hlen + 1.0, max(u_max_history, 1.0));
+        float a = max(u_alpha, 1.0 / len);
+        outc = mix(max(ycocg2rgb(cy), vec3(0.0)), cur, a);
+        om2 = mix(hm2, ycur * ycur, a);
+    } else {
+        // no usable history (disocclusion, off-screen, reset): the same-surface 3x3 mean
+        outc = ns > 0.0 ? same / ns : cur;
+        len = ns >= 4.0 ? 2.0 : 1.0;
+        om2 = ycur * ycur;
+        clipped = 1.0;
+    }
+    outc = sanitize(outc);
+    imageStore(o_hist, px, vec4(outc, len));
+    imageStore(o_aux, px, vec4(isnan(om2) || isinf(om2) ? 0.0 : om2, 0.0, 0.0, 0.0));
+    imageStore(o_pos, px, surf ? vec4(P, 1.0) : vec4(0.0));
+    imageStore(o_debug, px, vec4(vec3(len / max(u_max_history, 1.0), min(clipped, 1.0), 0.0), 1.0));
 }

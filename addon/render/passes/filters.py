@@ -10,7 +10,8 @@
   luminance moments (spatial estimate while the history is shorter than 4 frames),
   variance-guided à-trous whose first iteration is fed back as next frame's history, and
   remodulation.
-* ``TAAPass`` (Karis 2014): reprojected history, YCoCg neighbourhood clip, exponential blend.
+* ``TAAPass`` (Karis 2014): reprojected history (rejected by geometry), per-pixel history
+  length, YCoCg variance clip widened by the temporal sigma, linear exponential blend.
   The camera jitter is the session's R2 sequence (frame 0 at the pixel centre), which the
   G-buffer and every pass already use; TAA does not add its own (Halton) jitter: two jitter
   sequences would disagree, and R2 is the better-distributed 2D sequence.
@@ -45,7 +46,7 @@ class _FilterPass(Pass):
         rc.dispatch(prog, *rc.groups(8))
 
     def _atrous(self, rc, frame, src, dst_a, dst_b, iterations, mode, sigma_c, sigma_n, sigma_p,
-                feedback=None, halve_sigma=False):
+                feedback=None, halve_sigma=False, pair_var=0):
         """Run ``iterations`` à-trous steps from ``src`` ping-ponging between two textures;
         after the first step copy into ``feedback`` (SVGF's history). Returns the name of
         the texture holding the result."""
@@ -65,6 +66,7 @@ class _FilterPass(Pass):
             set_uniform(prog, "u_sigma_c", float(sigma_c) * (0.5 ** it if halve_sigma else 1.0))
             set_uniform(prog, "u_sigma_n", float(sigma_n))
             set_uniform(prog, "u_sigma_p", float(sigma_p))
+            set_uniform(prog, "u_pair_var", int(pair_var))
             res[dst].bind_to_image(0, read=False, write=True)
             self._run(rc, prog)
             rc.ctx.memory_barrier(0x0008 | 0x0020)  # the next step fetches what this one stored
@@ -128,13 +130,15 @@ class SVGFPass(_FilterPass):
     name = "svgf"
     reads = (COLOR, ALBEDO, NORMAL, POSITION, MOTION, "svgf.illum@prev", "svgf.moments@prev", "svgf.pos@prev",
              "svgf.nrm@prev")
-    writes = (COLOR, "svgf.illum", "svgf.moments", "svgf.pos", "svgf.nrm", "svgf.a", "svgf.b")
+    writes = (COLOR, "svgf.illum", "svgf.moments", "svgf.pos", "svgf.nrm", "svgf.a", "svgf.b", "svgf.dbg_var",
+              "svgf.dbg_len")
     declared = (Res(COLOR, check="radiance"),
                 Res("svgf.illum", history=True, check="radiance"),
                 Res("svgf.moments", history=True, check="finite"),
                 Res("svgf.pos", history=True, check="finite"),
                 Res("svgf.nrm", history=True, check="finite"),
-                Res("svgf.a", check="radiance"), Res("svgf.b", check="radiance"))
+                Res("svgf.a", check="radiance"), Res("svgf.b", check="radiance"),
+                Res("svgf.dbg_var", check="radiance"), Res("svgf.dbg_len", check="radiance"))
     history_resets = FILTER_RESETS
     params = (
         Param("iterations", 5, 1, 8, "variance-guided à-trous steps"),
@@ -143,6 +147,10 @@ class SVGFPass(_FilterPass):
         Param("sigma_normal", 128.0, 1.0, 1024.0, "normal exponent"),
         Param("sigma_depth", 1.0, 1e-3, 100.0, "tangent-plane distance sigma (pixel footprints per pixel of tap distance)"),
         Param("feedback", 1, 0, 1, "history fed back: 1 = the first à-trous iteration (the paper), 0 = the temporal integration"),
+        Param("clamp_sigma", 0.0, 0.0, 16.0, "history luminance clamp to the 3x3 mean ± this x max(spatial, "
+              "temporal sigma); 0 = off (the paper)"),
+        Param("pair_variance", 0, 0, 1, "luminance weight from the pair's variance (symmetric: keeps the energy of "
+              "bright outliers); 0 = the centre's (the paper)"),
     )
     quality_ladder = ({"iterations": 3}, {"iterations": 4}, {"iterations": 5}, {"iterations": 6})
 
@@ -158,7 +166,8 @@ class SVGFPass(_FilterPass):
             units.tex(prog, uni, res[name])
         set_uniform(prog, "u_reset", 0 if (self.history_valid and not frame.camera_cut) else 1)
         set_uniform(prog, "u_max_history", float(self["max_history"]))
-        for unit, name in enumerate(("svgf.a", "svgf.moments", "svgf.pos", "svgf.nrm")):
+        set_uniform(prog, "u_clamp_sigma", float(self["clamp_sigma"]))
+        for unit, name in enumerate(("svgf.a", "svgf.moments", "svgf.pos", "svgf.nrm", "svgf.dbg_var", "svgf.dbg_len")):
             res[name].bind_to_image(unit, read=False, write=True)
         self._run(rc, prog)
         rc.ctx.memory_barrier(0x0008 | 0x0020)
@@ -168,35 +177,47 @@ class SVGFPass(_FilterPass):
         # the first iteration's output becomes next frame's history (svgf.illum)
         out = self._atrous(rc, frame, "svgf.a", "svgf.b", "svgf.a", n, 1, self["sigma_luminance"],
                            self["sigma_normal"], self["sigma_depth"],
-                           feedback="svgf.illum" if int(self["feedback"]) == 1 else None)
+                           feedback="svgf.illum" if int(self["feedback"]) == 1 else None,
+                           pair_var=int(self["pair_variance"]))
         self._modulate(rc, out, COLOR, demod=False)
 
 
 class TAAPass(_FilterPass):
-    """Temporal anti-aliasing of ``color`` (after any denoiser)."""
+    """Temporal anti-aliasing of ``color`` (after any denoiser): geometric history rejection,
+    per-pixel history length, variance clipping widened by the temporal sigma, linear blend
+    (see shaders/filters/taa.comp)."""
 
     name = "taa"
-    reads = (COLOR, MOTION, POSITION, "taa.history@prev")
-    writes = (COLOR, "taa.history")
-    declared = (Res(COLOR, check="radiance"), Res("taa.history", history=True, filter_linear=True, check="radiance"))
+    reads = (COLOR, MOTION, POSITION, NORMAL, "taa.history@prev", "taa.aux@prev", "taa.pos@prev")
+    writes = (COLOR, "taa.history", "taa.aux", "taa.pos", "taa.debug")
+    declared = (Res(COLOR, check="radiance"),
+                Res("taa.history", history=True, check="radiance"),
+                Res("taa.aux", history=True, check="finite"),
+                Res("taa.pos", history=True, check="finite"),
+                Res("taa.debug", check="radiance"))
     history_resets = FILTER_RESETS
     params = (
-        Param("alpha", 0.1, 0.01, 1.0, "weight of the current frame"),
-        Param("gamma", 1.25, 0.25, 4.0, "neighbourhood box: mean ± gamma sigma (inside min/max)"),
+        Param("alpha", 0.1, 0.01, 1.0, "least weight of the current frame (1/history length until then)"),
+        Param("gamma", 1.25, 0.25, 4.0, "clip box: 3x3 mean ± gamma x max(spatial, temporal sigma)"),
+        Param("max_history", 32, 1, 1024, "history length cap (debug view: length / max_history)"),
     )
     quality_ladder = ({"alpha": 0.2}, {"alpha": 0.1}, {"alpha": 0.1, "gamma": 1.0}, {"alpha": 0.05, "gamma": 1.0})
 
     def execute(self, rc, frame):
         res = rc.resources
         prog = rc.programs.compute("filters/taa.comp")
+        bind_frame(rc, prog, frame)
         units = Units(1)
-        for uni, name in (("u_color", COLOR), ("u_hist", "taa.history@prev"), ("u_gb_motion", MOTION),
-                          ("u_gb_position", POSITION)):
+        for uni, name in (("u_color", COLOR), ("u_hist", "taa.history@prev"), ("u_hist_aux", "taa.aux@prev"),
+                          ("u_hist_pos", "taa.pos@prev"), ("u_gb_motion", MOTION), ("u_gb_position", POSITION),
+                          ("u_gb_normal", NORMAL)):
             units.tex(prog, uni, res[name])
         set_uniform(prog, "u_reset", 0 if (self.history_valid and not frame.camera_cut) else 1)
         set_uniform(prog, "u_alpha", float(self["alpha"]))
         set_uniform(prog, "u_gamma", float(self["gamma"]))
-        res["taa.history"].bind_to_image(0, read=False, write=True)
+        set_uniform(prog, "u_max_history", float(self["max_history"]))
+        for unit, name in enumerate(("taa.history", "taa.aux", "taa.pos", "taa.debug")):
+            res[name].bind_to_image(unit, read=False, write=True)
         self._run(rc, prog)
         rc.ctx.memory_barrier(0x0008 | 0x0020)
         self._copy(rc, "taa.history", COLOR)

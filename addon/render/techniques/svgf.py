@@ -2,7 +2,8 @@
 See passes/filters.py (SVGFPass) and docs/techniques/SVGF.md.
 
 Parameters (pass ``svgf``): iterations 1–8, max_history, sigma_luminance, sigma_normal,
-sigma_depth. Quality ladder: iterations 3, 4, 5, 6. Warm-up: 8 frames before an F12 render
+sigma_depth, feedback. Debug render passes: GI_SVGF_Variance (luminance variance of the
+integrated signal), GI_SVGF_History (history length / max_history). Quality ladder: iterations 3, 4, 5, 6. Warm-up: 8 frames before an F12 render
 accumulates (the temporal history fills). Compared with: the full Cycles reference."""
 from __future__ import annotations
 
@@ -18,6 +19,8 @@ class SVGF(FilteredPT):
     description = "1-spp path tracing filtered by spatiotemporal variance-guided filtering (Schied 2017)"
     cost_rank = 310
     warmup_frames = 8
+    # debug views as render passes: the variance handed to the à-trous, the history length
+    outputs = {**FilteredPT.outputs, "GI_SVGF_Variance": "svgf.dbg_var", "GI_SVGF_History": "svgf.dbg_len"}
 
     def filters(self, quality):
         return [SVGFPass(quality)]

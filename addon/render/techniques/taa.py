@@ -2,7 +2,9 @@
 G-buffer motion, YCoCg neighbourhood clip, exponential history. The camera jitter is the
 session's R2 sequence (see passes/filters.py). Docs: docs/techniques/TAA.md.
 
-Parameters (pass ``taa``): alpha (current-frame weight), gamma (box width in sigmas).
+Parameters (pass ``taa``): alpha (least current-frame weight), gamma (box width in sigmas),
+max_history. Debug render pass GI_TAA_History (R: history length / max_history, G: share of
+the history moved by the clip).
 Quality ladder: alpha 0.2, 0.1, 0.1 (gamma 1), 0.05 (gamma 1). Warm-up: 8 frames."""
 from __future__ import annotations
 
@@ -18,6 +20,8 @@ class TAA(FilteredPT):
     description = "1-spp path tracing with temporal anti-aliasing (Karis 2014)"
     cost_rank = 305
     warmup_frames = 8
+    # debug view as a render pass: R = history length / max_history, G = share of the history clipped
+    outputs = {**FilteredPT.outputs, "GI_TAA_History": "taa.debug"}
 
     def filters(self, quality):
         return [TAAPass(quality)]
