@@ -25,6 +25,7 @@ uniform vec2 u_resolution;
 uniform vec3 u_camera_pos;
 uniform vec3 u_camera_fwd;
 uniform uint u_sample;
+uniform uint u_pattern;  // the VPL pattern's index: the frame within the current accumulation
 
 
 void main() {
@@ -36,7 +37,7 @@ void main() {
     vec4 pos = texelFetch(u_gb_position, fp, 0);
     if (pos.w < 0.0) { imageStore(o_out, px, vec4(0.0)); return; }
     vec3 N = normalize(texelFetch(u_gb_normal, fp, 0).xyz + vec3(0.0, 0.0, 1e-12));
-    imageStore(o_out, px, vec4(sanitize(rsm_gather(pos.xyz, N, u_sample)), 1.0));
+    imageStore(o_out, px, vec4(sanitize(rsm_gather(pos.xyz, N, u_pattern)), 1.0));
 #else
     if (any(greaterThanEqual(px, ivec2(u_resolution)))) return;
     vec4 pos = texelFetch(u_gb_position, px, 0);
@@ -74,7 +75,7 @@ void main() {
     if (ok >= 3 && wsum > 1e-3) {
         E = acc / wsum;
     } else {
-        E = rsm_gather(P, N, u_sample);
+        E = rsm_gather(P, N, u_pattern);
         again = 1.0;
     }
     imageStore(o_out, px, vec4(sanitize(E), 1.0));

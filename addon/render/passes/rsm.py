@@ -22,8 +22,9 @@
   the exact inverse density 2πR²ξ1/N. Kernel
   ``Φ·max(0,⟨n_p,x−x_p⟩)·max(0,⟨n,x_p−x⟩)/max(‖x−x_p‖², d_min²)²``: the clamp ``min_distance``
   bounds the singularity and darkens contacts closer than d_min (bias, see the page).
-  The pattern is shared by all pixels of a frame and rotated every frame (accumulation
-  converges to the full sum over the disk). It runs at ``low_scale`` of the resolution,
+  The pattern is shared by all pixels of a frame and rotated with the frame's index in the
+  current accumulation (accumulation converges to the full sum over the disk; a moving
+  view or light keeps one pattern, so nothing flickers). It runs at ``low_scale`` of the resolution,
   then ``RSMResolvePass`` interpolates the four nearest low-resolution samples where their
   normals and planes agree with the pixel's (at least three), and gathers again at full
   resolution where they do not (the paper's screen-space scheme).
@@ -252,6 +253,15 @@ def bind_rsm(rc, prog, units: Units, gather: Pass):
     set_uniform(prog, "u_exact_weights", 1 if gather["exact_weights"] else 0)
 
 
+def bind_pattern(prog, frame):
+    """The VPL pattern follows the frame's index within the current accumulation, not the
+    global sample counter: an accumulation (F12, a still viewport) walks the patterns and
+    converges, while a moving view or light (each frame a new accumulation) keeps pattern 0,
+    so the pattern's structured error does not change from frame to frame (no flicker:
+    60 moving frames measured 2.2x Cycles' frame-to-frame change with the global counter)."""
+    set_uniform(prog, "u_pattern", int(frame.index) & 0xFFFFFFFF)
+
+
 class RSMGatherPass(Pass):
     """Low-resolution gather (``rsm.low``, rgb = E/π, the incident irradiance over π)."""
 
@@ -276,6 +286,7 @@ class RSMGatherPass(Pass):
         units = Units(1)
         bind_gbuffer(rc, prog, units)
         bind_rsm(rc, prog, units, self)
+        bind_pattern(prog, frame)
         size = scaled(rc.size, float(self["low_scale"]))
         set_uniform(prog, "u_low_size", size)
         rc.resources["rsm.low"].bind_to_image(0, read=False, write=True)
@@ -304,6 +315,7 @@ class RSMResolvePass(Pass):
         units = Units(1)
         bind_gbuffer(rc, prog, units)
         bind_rsm(rc, prog, units, self.gather)
+        bind_pattern(prog, frame)
         units.tex(prog, "u_low", rc.resources["rsm.low"])
         g = self.gather
         set_uniform(prog, "u_low_size", scaled(rc.size, float(g["low_scale"])))
