@@ -99,8 +99,10 @@ void main() {
     vec3 rho = diffuse_albedo(s, 0.5);  // the Lambertian layer's albedo at 60 degrees (see the page)
     vec3 n = normalize(g_normal);
     if (dot(n, n) < 0.5) n = un;
-    // two-sided surfaces: a canonical orientation so that opposite faces in one voxel add up
-    if (depth_of(n, g_axis) < 0.0) n = -n;
+    // the mesh's own orientation (not flipped to a canonical side): the injection lights both
+    // sides, and a corner voxel (ceiling and wall of a room seen from inside) must average
+    // two normals that face the same side (a canonical flip made such voxels send the
+    // sun-lit outside of a roof into the room)
     vec3 h = vec3(0.5 + t);
     for (int k = k0; k <= min(k1, k0 + 15); ++k) {
         vec3 g = unproj(pix, float(k), g_axis);  // voxel corner

@@ -11,7 +11,7 @@
   (``shaders/vxgi/voxelize.*``). Chosen over a compute voxeliser because llvmpipe's
   rasteriser spreads the work of large triangles over its threads, where a thread per
   triangle would leave one thread walking a whole wall. Each overlapping triangle adds its
-  diffuse albedo, normal (two-sided: a canonical orientation) and nearest plane point to
+  diffuse albedo, normal (the mesh's orientation) and nearest plane point to
   the voxel's record (``vxgi.voxels``, an SSBO, float atomics by compare-and-swap).
 * ``VoxelInjectPass`` (compute): per voxel, the averaged record → direct light from every
   light in Cycles' units on both sides of the voxel's surface, shadowed by the shadow maps
@@ -151,7 +151,7 @@ class VoxelizePass(Pass):
         Param("resolution", 64, 8, 256, "voxels per side of one cascade (a multiple of 8 keeps 4 mip levels)"),
         Param("cascades", 2, 1, MAX_CASCADES, "cascades centred on the camera (voxel size doubles)"),
         Param("voxel_size", 0.0, 0.0, 100.0, "finest voxel size (0 = the coarsest cascade holds the scene)"),
-        Param("thickness", 0.0, 0.0, 2.0, "voxelisation dilation in voxels (thicker walls against leaks)"),
+        Param("thickness", 1.0, 0.0, 2.0, "voxelisation dilation in voxels (thicker walls against leaks)"),
     )
     quality_ladder = ({"resolution": 32}, {"resolution": 48}, {"resolution": 64}, {"resolution": 96})
 
@@ -214,7 +214,7 @@ def radiance_decl(n: int, cascades: int) -> Res:
 
 CONE_PARAMS = (
     Param("step", 0.5, 0.1, 2.0, "cone step, fraction of the cone diameter"),
-    Param("normal_offset", 1.5, 0.0, 4.0, "cones start this many voxels off the surface"),
+    Param("normal_offset", 3.0, 0.0, 6.0, "cones start this many voxels off the surface"),
     Param("max_distance", 0.0, 0.0, 1e4, "cone length (0 = the coarsest cascade's side)"),
     Param("opacity_scale", 1.0, 1.0, 4.0, "opacity bias: voxel opacity x this (against leaks)"),
     Param("side_angle", 60.0, 20.0, 70.0, "angle of the five side cones from the normal (degrees)"),
@@ -232,7 +232,7 @@ class VoxelInjectPass(Pass):
         Param("multi_bounce", True, doc="inject last frame's indirect irradiance (and sky light) into the voxels"),
         Param("shadow_offset", 0.5, 0.0, 4.0, "shadow lookups start this many voxels off the voxel's surface"),
         Param("mesh_exact_max", 64, 0, 256, "emissive meshes up to this many triangles are integrated exactly"),
-        Param("directional_opacity", False, doc="level-0 opacity towards each direction = the surface's "
+        Param("directional_opacity", True, doc="level-0 opacity towards each direction = the surface's "
               "projected coverage |n.D| (else 1: opaque from every side)"),
     )
     # the voxels' own gather (multi-bounce, sky) steps a whole cone diameter: it runs for
