@@ -1,0 +1,205 @@
+"""VXGI (issue 10: voxel cone tracing) against Cycles: accuracy, leaks, voxelisation, stability.
+
+VXGI is experimental (registered only with GI_PREVIEW_EXPERIMENTAL=1, see
+techniques/vxgi.py): the module fixture registers it for these tests and removes it again,
+so the menu, AUTO and the hard-case tests of the other modules never see it.
+Small on purpose (32-40 px, quality 0 = 32³ voxels x 2 cascades, Cycles 128 spp); the q0-q3
+sweeps, the 60-frame stability run and the leak table are in scripts/bench_vxgi.py
+(docs/results/vxgi/). Measured (Blender 5.0.1, llvmpipe, 40 px, q0), printed by each test:
+* cornell vs "full": relMSE 0.061 (DIRECT 0.289), mean ratio 0.869 (asserted: <= 0.6 x
+  DIRECT, within +-15 %); the voxel view is lit on 100 % of DIRECT's lit pixels (>= 95 %).
+* sunlit_room vs "full": relMSE 1.10 (DIRECT 0.108), mean ratio 2.71: the issue's "beats
+  DIRECT" is NOT met (light leaks through the zero-thickness roof and walls); asserted only
+  as a regression bound (relMSE <= 1.6, ratio <= 3.2) until it is fixed.
+* two_rooms: the dark room is lit: leak 0.094 of the lit room's mean (default, 1 voxel of
+  dilation), 0.071 without the dilation (asserted finite, in [0, 1)).
+* moving light and camera (6 frames): frame-to-frame mean |diff| max 0.060 against Cycles'
+  0.062 (asserted <= 1.25x). Total 19.7 s for the file.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import bpy
+import numpy as np
+import pytest
+
+from gi_preview.blender import demo_scenes, reference
+from gi_preview.blender.export import export_scene
+from gi_preview.compare import metrics
+from gi_preview.render import session
+from gi_preview.render.gl import get_gl
+
+import scenes_raster3d
+
+RES, SPP, FRAMES, Q = 40, 128, 4, 0
+ARTIFACTS = Path(__file__).resolve().parent / "_artifacts" / "vxgi"
+
+
+@pytest.fixture(scope="module", autouse=True)
+def vxgi_registered():
+    """Register the experimental technique for this module only."""
+    from gi_preview.render import techniques
+    from gi_preview.render.techniques import vxgi
+
+    techniques._load()
+    had = "VXGI" in techniques.REGISTRY
+    techniques.register(vxgi.VXGI)
+    yield
+    if not had:
+        techniques.REGISTRY.pop("VXGI", None)
+
+
+def _export(sc):
+    return export_scene(reference.evaluated_depsgraph(sc))
+
+
+def _dump(name, **images):
+    from gi_preview.compare import imageio
+
+    reference.ensure_oiio()
+    ARTIFACTS.mkdir(parents=True, exist_ok=True)
+    for k, img in images.items():
+        imageio.write_exr(str(ARTIFACTS / f"{name}_{k}.exr"), np.asarray(img, np.float32))
+
+
+def _ratio(img, ref):
+    return float(img[..., :3].mean() / max(ref[..., :3].mean(), 1e-12))
+
+
+def _render(sd, sess, props=None, frames=FRAMES, quality=Q, **kw):
+    """VXGI in its own session with pass properties ``props`` ({pass: {name: value}})."""
+    if props:
+        session.render(sd, "VXGI", quality, 1, session=sess, warmup=False)
+
+        def go():
+            for _t, g in session._sessions[sess].graphs.values():
+                g.set_properties(props)
+        get_gl().call(go)
+    return session.render(sd, "VXGI", quality, frames, session=sess, **kw)
+
+
+def test_cornell_beats_direct_and_mean_within_15pct():
+    sc = demo_scenes.build_demo("cornell", resolution=RES)
+    try:
+        sd = _export(sc)
+        ref = reference.render_cycles(sc, SPP, "full")[0]
+        direct = metrics.relmse(session.render(sd, "DIRECT", Q, 2).image, ref)
+        res = _render(sd, "vxgi_cornell")
+        img = res.image
+        err, ratio = metrics.relmse(img, ref), _ratio(img, ref)
+        print(f"cornell VXGI q{Q}: relMSE vs full {err:.4f} (DIRECT {direct:.4f}), mean ratio {ratio:.3f}, "
+              f"frame {res.frame_ms:.0f} ms")
+        assert np.isfinite(img).all() and img.min() >= 0.0
+        assert not [s for s in res.skipped_passes if s.name.startswith("vxgi")]
+        if err > 0.6 * direct or abs(ratio - 1) > 0.15:
+            _dump("cornell", ours=img, cycles=ref)
+        assert err <= 0.6 * direct
+        assert abs(ratio - 1.0) <= 0.15
+        ind = res.aovs["GI_IndirectDiffuse"][..., :3]
+        assert ind.min() >= 0.0 and ind.mean() > 0.2 * img[..., :3].mean()
+        ao = res.aovs["GI_AO"][..., 0]
+        assert 0.0 <= ao.min() and ao.max() <= 1.0 and ao.mean() < 0.95  # the box occludes
+        # every directly lit surface is voxelised and lit: the voxel view (mip 0) shows light
+        # wherever DIRECT does (a hole in the voxelisation would show black)
+        vox = res.aovs["GI_VXGI_Voxels"][..., :3].max(axis=2)
+        lit = res.aovs["GI_Direct"][..., :3].max(axis=2) > 0.05
+        cover = float((vox[lit] > 1e-3).mean())
+        print(f"cornell: voxel view lit on {cover:.3f} of the directly lit pixels")
+        assert np.isfinite(vox).all() and cover >= 0.95
+    finally:
+        session.release_session("vxgi_cornell")
+        bpy.data.scenes.remove(sc)
+
+
+def test_sunlit_room_regression_bound():
+    """Not the issue's acceptance (VXGI does not beat DIRECT here, see the module doc): a
+    bound on the measured error so that it cannot silently get worse."""
+    sc = demo_scenes.build_demo("sunlit_room", resolution=RES)
+    try:
+        sd = _export(sc)
+        ref = reference.render_cycles(sc, SPP, "full")[0]
+        direct = metrics.relmse(session.render(sd, "DIRECT", Q, 2).image, ref)
+        img = _render(sd, "vxgi_sunlit").image
+        err = metrics.relmse(img, ref)
+        print(f"sunlit_room VXGI q{Q}: relMSE vs full {err:.4f} (DIRECT {direct:.4f}), "
+              f"mean ratio {_ratio(img, ref):.3f} (DIRECT {_ratio(session.render(sd, 'DIRECT', Q, 1).image, ref):.3f})")
+        if err > 0.75 * direct:
+            _dump("sunlit_room", ours=img, cycles=ref)
+        assert np.isfinite(img).all() and img.min() >= 0.0
+        assert err <= 1.6 and _ratio(img, ref) <= 3.2
+    finally:
+        session.release_session("vxgi_sunlit")
+        bpy.data.scenes.remove(sc)
+
+
+def test_thin_wall_leak_is_measured():
+    """two_rooms: a zero-thickness wall between a lit and a dark room. The leak into the
+    dark room is printed with the default thicker voxelisation (1 voxel of dilation) and
+    without it; asserted finite and below the lit room's level (the page has the table)."""
+    dark = scenes_raster3d.build("two_rooms", 32)
+    lit = scenes_raster3d.build("two_rooms", 32, lit_camera=True)
+    try:
+        sd_dark = _export(dark)
+        ref_dark = reference.render_cycles(dark, 64, "full")[0]
+        lit_level = float(reference.render_cycles(lit, 64, "full")[0][..., :3].mean())
+        leaks = {}
+        for label, props in (("default", None), ("unmitigated", {"vxgi_voxelize": {"thickness": 0.0}})):
+            img = _render(sd_dark, f"vxgi_leak_{label}", props, frames=2).image
+            session.release_session(f"vxgi_leak_{label}")
+            assert np.isfinite(img).all() and img.min() >= 0.0
+            leaks[label] = float(img[..., :3].mean() - ref_dark[..., :3].mean()) / lit_level
+        print(f"two_rooms VXGI q{Q}: leak (dark-room mean - Cycles) / lit-room mean {lit_level:.3f}: "
+              + ", ".join(f"{k} {v:.4f}" for k, v in leaks.items()))
+        assert all(0.0 <= v < 1.0 for v in leaks.values())
+    finally:
+        bpy.data.scenes.remove(dark)
+        bpy.data.scenes.remove(lit)
+
+
+def _move(sc, k):
+    light = next(o for o in sc.objects if o.type == "LIGHT")
+    cam = sc.camera
+    light.location.x = -0.3 + 0.12 * k
+    light.location.y = 0.1 * math.sin(k)
+    cam.location.x = 0.05 * k
+    cam.location.z = 1.0 + 0.02 * k
+
+
+def test_moving_light_and_camera_no_flicker():
+    """The method of test_raster3d (6 frames here, 60 in scripts/bench_vxgi.py --stability)."""
+    sc = demo_scenes.build_demo("cornell", resolution=32)
+    try:
+        ours, cyc = [], []
+        for k in range(6):
+            _move(sc, k)
+            sd = _export(sc)
+            res = session.render(sd, "VXGI", Q, 2, keep_history=True, session="vxgi_motion")
+            img = res.image[..., :3]
+            assert np.isfinite(img).all(), f"frame {k}: non-finite"
+            assert img.min() >= 0.0, f"frame {k}: negative {img.min()}"
+            ours.append(img)
+            cyc.append(reference.render_cycles(sc, 64, "full")[0][..., :3])
+        d_ours = [float(np.abs(a - b).mean()) for a, b in zip(ours, ours[1:])]
+        d_cyc = [float(np.abs(a - b).mean()) for a, b in zip(cyc, cyc[1:])]
+        print(f"VXGI frame-to-frame mean |diff|: ours {np.round(d_ours, 4)} Cycles {np.round(d_cyc, 4)}")
+        assert max(d_ours) <= 1.25 * max(d_cyc)
+    finally:
+        session.release_session("vxgi_motion")
+        bpy.data.scenes.remove(sc)
+
+
+def test_planner_skips_vxgi_without_light_to_inject():
+    sc = demo_scenes.build_demo("cornell", resolution=16)
+    try:
+        for ob in sc.objects:
+            if ob.type == "LIGHT":
+                ob.data.use_shadow = False
+        res = session.render(_export(sc), "VXGI", 0, 1)
+        skipped = {s.name: s.reason for s in res.skipped_passes}
+        assert {"vxgi_voxelize", "vxgi_inject", "vxgi_mips", "vxgi_trace"} <= set(skipped)
+        assert "no light casts shadows" in skipped["vxgi_inject"]
+        assert np.isfinite(res.image).all()
+    finally:
+        bpy.data.scenes.remove(sc)

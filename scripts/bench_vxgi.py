@@ -1,0 +1,274 @@
+#!/usr/bin/env python3
+"""VXGI (voxel cone tracing) measured against Cycles: accuracy, leaks, stability, demo sweeps.
+
+    cd /work/main && flock /tmp/gi_heavy.lock .venv/bin/python scripts/bench_vxgi.py
+        [--accuracy] [--leak] [--stability] [--sweep] [--res 48] [--ref-spp 128]
+        [--out docs/results/vxgi]
+
+* ``--accuracy``: cornell and sunlit_room, VXGI q0-q3 (multi-bounce on; off too at q0, q1) and DIRECT
+  against Cycles "full" (the bounce-matched reference: VXGI with multi-bounce models every
+  bounce): relMSE, mean over the reference's mean, frame and setup time.
+* ``--leak``: two_rooms (scenes_raster3d: a zero-thickness wall between a lit room and the
+  dark room the camera is in): the dark room's mean minus Cycles', over the lit room's
+  Cycles mean, for the default and each mitigation (thicker voxelisation, opacity bias,
+  both), and the voxel opacity along the camera's view of the wall (conservativeness).
+* ``--stability``: cornell, 60 frames with a moving light and a moving camera (history
+  kept, one frame each, as the viewport), Cycles 64 spp per frame: finite, minimum, and the
+  frame-to-frame mean |difference| of ours against Cycles' (the test_raster3d method).
+* ``--sweep``: scripts/gi_compare.py on every demo scene, DIRECT and VXGI at q0-q3 against
+  the reference each models and "full" (relMSE, FLIP, time per frame, setup time,
+  equal-error speed-up against Cycles' curve), into ``<out>/<scene>/``; ``<out>/sweep.md``.
+With no section flag, all four run. Results: ``<out>/bench.json`` and ``<out>/bench.md``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+DEMOS = ("cornell", "glossy_spheres", "sunlit_room", "emissive_panel", "many_lights")
+
+
+def _setup():
+    os.environ["GI_PREVIEW_EXPERIMENTAL"] = "1"  # VXGI is experimental (techniques/vxgi.py)
+    sys.path.insert(0, os.path.join(REPO, "blender_tests"))
+    import conftest  # noqa: F401  (hermetic Blender user folder, `import gi_preview`)
+
+
+def _props(sess, props):
+    from gi_preview.render import session
+    from gi_preview.render.gl import get_gl
+
+    def go():
+        for _t, g in session._sessions[sess].graphs.values():
+            g.set_properties(props)
+    get_gl().call(go)
+
+
+def render_vxgi(sd, quality, samples, props=None, sess="bench_vxgi"):
+    from gi_preview.render import session
+
+    if props:
+        session.render(sd, "VXGI", quality, 1, session=sess, warmup=False)
+        _props(sess, props)
+    r = session.render(sd, "VXGI", quality, samples, session=sess)
+    session.release_session(sess)
+    return r
+
+
+def accuracy(o, out):
+    import bpy
+    import numpy as np
+    from gi_preview.blender import demo_scenes, reference
+    from gi_preview.blender.export import export_scene
+    from gi_preview.compare import metrics
+    from gi_preview.render import session
+
+    rows = []
+    for scene in ("cornell", "sunlit_room"):
+        sc = demo_scenes.build_demo(scene, resolution=o.res)
+        sd = export_scene(reference.evaluated_depsgraph(sc))
+        ref = reference.render_cycles(sc, o.ref_spp, "full")[0]
+        one = reference.render_cycles(sc, o.ref_spp, "one_bounce")[0]
+        d = session.render(sd, "DIRECT", 1, o.samples)
+        rows.append({"scene": scene, "technique": "DIRECT", "quality": 1, "multi_bounce": None,
+                     "relmse_full": metrics.relmse(d.image, ref), "relmse_one_bounce": metrics.relmse(d.image, one),
+                     "mean_ratio_full": float(d.image[..., :3].mean() / ref[..., :3].mean()),
+                     "frame_ms": d.frame_ms, "setup_ms": d.setup_ms})
+        for q in range(4):
+            for mb in ((True, False) if q <= 1 else (True,)):
+                r = render_vxgi(sd, q, o.samples, None if mb else {"vxgi_inject": {"multi_bounce": False}})
+                img = r.image
+                rows.append({"scene": scene, "technique": "VXGI", "quality": q, "multi_bounce": mb,
+                             "relmse_full": metrics.relmse(img, ref), "relmse_one_bounce": metrics.relmse(img, one),
+                             "mean_ratio_full": float(img[..., :3].mean() / ref[..., :3].mean()),
+                             "finite": bool(np.isfinite(img).all()), "min": float(img.min()),
+                             "frame_ms": r.frame_ms, "setup_ms": r.setup_ms, "warmup_frames": r.warmup_frames,
+                             "pass_ms": {k: round(v, 2) for k, v in r.pass_ms.items()}})
+                print(json.dumps(rows[-1]), flush=True)
+        bpy.data.scenes.remove(sc)
+    return rows
+
+
+LEAK_CONFIGS = (
+    ("no mitigation (thickness 0, opacity x1)", {"vxgi_voxelize": {"thickness": 0.0}}),
+    ("default (thickness 1)", {}),
+    ("thickness 1, opacity x2", {"vxgi_inject": {"opacity_scale": 2.0}, "vxgi_trace": {"opacity_scale": 2.0}}),
+    ("thickness 2", {"vxgi_voxelize": {"thickness": 2.0}}),
+)
+
+
+def leak(o, out):
+    import bpy
+    import numpy as np
+    import scenes_raster3d
+    from gi_preview.blender import reference
+    from gi_preview.blender.export import export_scene
+
+    dark = scenes_raster3d.build("two_rooms", o.res)
+    lit = scenes_raster3d.build("two_rooms", o.res, lit_camera=True)
+    sd = export_scene(reference.evaluated_depsgraph(dark))
+    ref_dark = reference.render_cycles(dark, o.ref_spp, "full")[0]
+    lit_level = float(reference.render_cycles(lit, o.ref_spp, "full")[0][..., :3].mean())
+    rows = []
+    for q in (0, 1):
+        for label, props in LEAK_CONFIGS:
+            r = render_vxgi(sd, q, o.samples, props)
+            img = r.image
+            rows.append({"quality": q, "config": label, "dark_mean": float(img[..., :3].mean()),
+                         "cycles_dark_mean": float(ref_dark[..., :3].mean()), "lit_mean": lit_level,
+                         "leak": float(img[..., :3].mean() - ref_dark[..., :3].mean()) / lit_level,
+                         "voxel_opacity_min": float(r.aovs["GI_VXGI_Voxels"][..., 3].min()),
+                         "finite": bool(np.isfinite(img).all())})
+            print(json.dumps(rows[-1]), flush=True)
+    bpy.data.scenes.remove(dark)
+    bpy.data.scenes.remove(lit)
+    return rows
+
+
+def stability(o, out, frames=60):
+    import bpy
+    import numpy as np
+    from gi_preview.blender import demo_scenes, reference
+    from gi_preview.blender.export import export_scene
+    from gi_preview.render import session
+
+    sc = demo_scenes.build_demo("cornell", resolution=32)
+    light = next(ob for ob in sc.objects if ob.type == "LIGHT")
+    cam = sc.camera
+    l0, c0 = light.location.copy(), cam.location.copy()
+    ours, cyc, mins, finite, ms = [], [], [], True, []
+    for k in range(frames):
+        s = k / 10.0  # the 6-frame test's path, 10 times finer
+        light.location.x = l0.x - 0.3 + 0.12 * s
+        light.location.y = l0.y + 0.1 * math.sin(s)
+        cam.location.x = c0.x + 0.05 * s
+        cam.location.z = 1.0 + 0.02 * s
+        sd = export_scene(reference.evaluated_depsgraph(sc))
+        r = session.render(sd, "VXGI", 1, 1, keep_history=True, session="bench_vxgi_motion")
+        img = r.image[..., :3]
+        finite &= bool(np.isfinite(img).all())
+        mins.append(float(img.min()))
+        ms.append(r.frame_ms)
+        ours.append(img)
+        cyc.append(reference.render_cycles(sc, 64, "full")[0][..., :3])
+    session.release_session("bench_vxgi_motion")
+    bpy.data.scenes.remove(sc)
+    d_ours = [float(np.abs(a - b).mean()) for a, b in zip(ours, ours[1:])]
+    d_cyc = [float(np.abs(a - b).mean()) for a, b in zip(cyc, cyc[1:])]
+    row = {"frames": frames, "finite": finite, "min": min(mins), "ours_max_diff": max(d_ours),
+           "ours_mean_diff": float(np.mean(d_ours)), "cycles_max_diff": max(d_cyc),
+           "cycles_mean_diff": float(np.mean(d_cyc)), "frame_ms_median": float(np.median(ms)),
+           "ours_diffs": [round(x, 5) for x in d_ours], "cycles_diffs": [round(x, 5) for x in d_cyc]}
+    print(json.dumps(row), flush=True)
+    return row
+
+
+def sweep(o, out):
+    rows = []
+    env = dict(os.environ, GI_PREVIEW_EXPERIMENTAL="1")
+    for scene in o.scenes.split(","):
+        dst = os.path.join(out, scene)
+        cmd = [sys.executable, os.path.join(HERE, "gi_compare.py"), scene, "--techniques", "DIRECT,VXGI",
+               "--quality", "all", "--res", str(o.sweep_res), "--ref-spp", str(o.sweep_ref_spp),
+               "--samples", str(o.samples), "--frames", "2", "--baselines", "cycles", "--out", dst]
+        print(" ".join(cmd), flush=True)
+        subprocess.run(cmd, check=True, env=env)
+        with open(os.path.join(dst, "results.json")) as f:
+            res = json.load(f)
+        for r in res.get("results", []):
+            rows.append({"scene": scene, **{k: r.get(k) for k in (
+                "technique", "quality", "reference", "relmse", "flip", "time_ms", "frame_ms", "setup_ms",
+                "nonfinite_pixels", "speedups", "speedup", "errors")}})
+    return rows
+
+
+def _f(x, fmt=".4f"):
+    return format(x, fmt) if isinstance(x, (int, float)) and x is not None else str(x)
+
+
+def write_md(path, data, o):
+    L = ["# VXGI against Cycles (scripts/bench_vxgi.py)", "",
+         f"Resolution {o.res} px (sweep {o.sweep_res}), Cycles {o.ref_spp} spp, {o.samples} accumulated "
+         f"frames after each quality level's warm-up; llvmpipe, 2 cores.", ""]
+    if "accuracy" in data:
+        L += ["## Accuracy against Cycles 'full'", "",
+              "| scene | technique | q | multi-bounce | relMSE full | relMSE one-bounce | mean / full | ms/frame | setup ms |",
+              "|---|---|---|---|---|---|---|---|---|"]
+        for r in data["accuracy"]:
+            L.append(f"| {r['scene']} | {r['technique']} | {r['quality']} | {r['multi_bounce']} | "
+                     f"{_f(r['relmse_full'])} | {_f(r['relmse_one_bounce'])} | {_f(r['mean_ratio_full'], '.3f')} | "
+                     f"{_f(r['frame_ms'], '.0f')} | {_f(r['setup_ms'], '.0f')} |")
+        L.append("")
+    if "leak" in data:
+        L += ["## Light leak into the dark room (two_rooms, zero-thickness wall)", "",
+              "leak = (dark-room mean - Cycles' dark-room mean) / Cycles' lit-room mean", "",
+              "| q | configuration | dark-room mean | Cycles | leak | voxel opacity min |", "|---|---|---|---|---|---|"]
+        for r in data["leak"]:
+            L.append(f"| {r['quality']} | {r['config']} | {_f(r['dark_mean'])} | {_f(r['cycles_dark_mean'])} | "
+                     f"{_f(r['leak'])} | {_f(r['voxel_opacity_min'], '.3f')} |")
+        L.append("")
+    if "stability" in data:
+        s = data["stability"]
+        L += ["## Stability: 60 frames, moving light and camera (cornell, 32 px, q1)", "",
+              f"finite: {s['finite']}, minimum {s['min']:.3g}; frame-to-frame mean |diff|: ours max "
+              f"{s['ours_max_diff']:.4f} (mean {s['ours_mean_diff']:.4f}), Cycles 64 spp max "
+              f"{s['cycles_max_diff']:.4f} (mean {s['cycles_mean_diff']:.4f}); median frame "
+              f"{s['frame_ms_median']:.0f} ms.", ""]
+    if "sweep" in data:
+        L += ["## Demo scenes (scripts/gi_compare.py)", "",
+              "| scene | technique | q | reference | relMSE | FLIP | ms/frame | setup ms | speed-up vs Cycles |",
+              "|---|---|---|---|---|---|---|---|---|"]
+        for r in data["sweep"]:
+            sp = (r.get("speedups") or {}).get("cycles") or r.get("speedup") or {}
+            spv = sp.get("speedup") if isinstance(sp, dict) else None
+            spv = f"{spv:.3g}" if isinstance(spv, (int, float)) else (sp.get("reason", "") if isinstance(sp, dict) else "")
+            L.append(f"| {r['scene']} | {r['technique']} | {r['quality']} | {r['reference']} | {_f(r['relmse'])} | "
+                     f"{_f(r['flip'])} | {_f(r.get('frame_ms') or r.get('time_ms'), '.0f')} | "
+                     f"{_f(r['setup_ms'], '.0f')} | {spv} |")
+    with open(path, "w") as f:
+        f.write("\n".join(L) + "\n")
+    print("\n".join(L))
+
+
+def main(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    for s in ("accuracy", "leak", "stability", "sweep"):
+        p.add_argument(f"--{s}", action="store_true")
+    p.add_argument("--res", type=int, default=48)
+    p.add_argument("--ref-spp", type=int, default=128)
+    p.add_argument("--samples", type=int, default=4)
+    p.add_argument("--scenes", default=",".join(DEMOS))
+    p.add_argument("--sweep-res", type=int, default=48)
+    p.add_argument("--sweep-ref-spp", type=int, default=128)
+    p.add_argument("--out", default=os.path.join(REPO, "docs", "results", "vxgi"))
+    o = p.parse_args(argv)
+    chosen = [s for s in ("accuracy", "leak", "stability", "sweep") if getattr(o, s)] or [
+        "accuracy", "leak", "stability", "sweep"]
+    os.makedirs(o.out, exist_ok=True)
+    path = os.path.join(o.out, "bench.json")
+    data = {}
+    if os.path.exists(path):
+        with open(path) as f:
+            data = json.load(f)
+    _setup()
+    t0 = time.time()
+    for s in chosen:
+        data[s] = {"accuracy": accuracy, "leak": leak, "stability": stability, "sweep": sweep}[s](o, o.out)
+        with open(path, "w") as f:
+            json.dump(data, f, indent=1)
+    data["settings"] = {"res": o.res, "ref_spp": o.ref_spp, "samples": o.samples, "sweep_res": o.sweep_res,
+                        "sweep_ref_spp": o.sweep_ref_spp, "wall_s": round(time.time() - t0, 1)}
+    with open(path, "w") as f:
+        json.dump(data, f, indent=1)
+    write_md(os.path.join(o.out, "bench.md"), data, o)
+
+
+if __name__ == "__main__":
+    main()
