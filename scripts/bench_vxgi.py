@@ -11,7 +11,7 @@
 * ``--leak``: two_rooms (scenes_raster3d: a zero-thickness wall between a lit room and the
   dark room the camera is in): the dark room's mean minus Cycles', over the lit room's
   Cycles mean, for the default and each mitigation (thicker voxelisation, opacity bias,
-  both), and the voxel opacity along the camera's view of the wall (conservativeness).
+  both).
 * ``--stability``: cornell, 60 frames with a moving light and a moving camera (history
   kept, one frame each, as the viewport), Cycles 64 spp per frame: finite, minimum, and the
   frame-to-frame mean |difference| of ours against Cycles' (the test_raster3d method).
@@ -124,7 +124,6 @@ def leak(o, out):
             rows.append({"quality": q, "config": label, "dark_mean": float(img[..., :3].mean()),
                          "cycles_dark_mean": float(ref_dark[..., :3].mean()), "lit_mean": lit_level,
                          "leak": float(img[..., :3].mean() - ref_dark[..., :3].mean()) / lit_level,
-                         "voxel_opacity_min": float(r.aovs["GI_VXGI_Voxels"][..., 3].min()),
                          "finite": bool(np.isfinite(img).all())})
             print(json.dumps(rows[-1]), flush=True)
     bpy.data.scenes.remove(dark)
@@ -209,10 +208,10 @@ def write_md(path, data, o):
     if "leak" in data:
         L += ["## Light leak into the dark room (two_rooms, zero-thickness wall)", "",
               "leak = (dark-room mean - Cycles' dark-room mean) / Cycles' lit-room mean", "",
-              "| q | configuration | dark-room mean | Cycles | leak | voxel opacity min |", "|---|---|---|---|---|---|"]
+              "| q | configuration | dark-room mean | Cycles | leak |", "|---|---|---|---|---|"]
         for r in data["leak"]:
             L.append(f"| {r['quality']} | {r['config']} | {_f(r['dark_mean'])} | {_f(r['cycles_dark_mean'])} | "
-                     f"{_f(r['leak'])} | {_f(r['voxel_opacity_min'], '.3f')} |")
+                     f"{_f(r['leak'])} |")
         L.append("")
     if "stability" in data:
         s = data["stability"]
