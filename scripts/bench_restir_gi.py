@@ -7,7 +7,8 @@
   and the accumulated mean of all frames, relMSE against Cycles full: RESTIR_GI (no filter),
   RESTIR_GI + SVGF, RESTIR_GI + ATROUS, SSDO, PT 1 spp, SVGF (PT 1 spp + SVGF); mean
   brightness against Cycles; ms/frame. Images: Cycles | SSDO | RESTIR_GI | RESTIR_GI+SVGF.
-* configs: RESTIR_GI variants on both scenes (no reuse, temporal only, spatial only, 1/M).
+* configs: RESTIR_GI variants on both scenes (no reuse, temporal only, spatial only, 1/M,
+  the temporal reservoirs as history instead of the spatial ones).
 * motion: a camera dolly+pan over ``--motion-frames`` frames on cornell / sunlit_room;
   every frame against a Cycles reference of that frame: relMSE per frame (whole image and
   the pixels disoccluded in that frame, i.e. with no valid reprojection), and the temporal
@@ -138,7 +139,8 @@ def configs(a, results):
     from gi_preview.blender.export import export_scene
     from gi_preview.blender.reference import evaluated_depsgraph, get_reference
     cfg = {"default": {}, "no_reuse": {"temporal": 0, "spatial": 0}, "temporal_only": {"spatial": 0},
-           "spatial_only": {"temporal": 0}, "bias_1/M": {"bias_mode": 0}}
+           "spatial_only": {"temporal": 0}, "bias_1/M": {"bias_mode": 0},
+           "history_temporal (paper)": {"feedback": 0}}
     out = {}
     for scene in a.scenes:
         sc = D.build_demo(scene, resolution=a.res)

@@ -27,11 +27,13 @@
 // unbiased for a static scene and robust where the targets differ (glossy).
 //
 // STAGE 0: the fresh sample (BSDF-sampled direction at x_v, trace, L_o); temporal reuse of
-//   last frame's final reservoir reprojected through gbuffer.motion (plane/normal tests,
-//   validation ray, Jacobian), its M capped at u_m_cap -> tmp reservoirs.
-// STAGE 1: spatial reuse of the tmp reservoirs of u_spatial neighbours in a u_radius-pixel
-//   disk (depth/normal tests, validation ray, Jacobian) -> final reservoirs (history) and
-//   the visible point they were made for.
+//   last frame's history reservoir reprojected through gbuffer.motion (plane/normal tests,
+//   validation ray, Jacobian), its M capped at u_m_cap -> temporal reservoirs.
+// STAGE 1: spatial reuse of the temporal reservoirs of u_spatial neighbours in a
+//   u_radius-pixel disk (depth/normal tests, validation ray, Jacobian) -> spatial reservoirs.
+// Both stages also write the visible point the reservoirs are made for. Which set is next
+// frame's history is the host's choice (pass parameter feedback): the spatial reservoirs
+// (1, as RTXDI does) or the temporal ones (0, as in the ReSTIR GI paper).
 // STAGE 2: shading: color += f * L_o * W split into the diffuse and glossy lobes of x_v
 //   (GI_IndirectDiffuse / GI_IndirectGlossy), debug views W and M.
 // Every history texel is checked for finiteness before use: NaN in history is dropped.
@@ -44,7 +46,7 @@
 #include "lib/scene_rt.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
-// STAGE 0: tmp pos, nrm, rad; STAGE 1: final pos, nrm, rad, vpos, vnrm;
+// STAGE 0 and 1: reservoir pos, nrm, rad and the visible point vpos, vnrm;
 // STAGE 2: color (read-modify-write), diffuse, glossy, debug W, debug M
 layout(binding = 0, rgba32f) uniform image2D o_0;
 layout(binding = 1, rgba32f) uniform writeonly image2D o_1;
@@ -228,10 +230,8 @@ void main() {
     }
     if (!sh.valid) {
         store_reservoir(px, empty_reservoir());
-        if (u_stage == 1) {
-            imageStore(o_3, px, vec4(0.0, 0.0, 0.0, -1.0));
-            imageStore(o_4, px, vec4(0.0));
-        }
+        imageStore(o_3, px, vec4(0.0, 0.0, 0.0, -1.0));
+        imageStore(o_4, px, vec4(0.0));
         return;
     }
     if (u_stage == 0) {
@@ -307,6 +307,8 @@ void main() {
         }
         if (isnan(r.W) || isinf(r.W) || r.W <= 0.0) { r.ok = false; r.W = 0.0; }
         store_reservoir(px, r);
+        imageStore(o_3, px, vec4(sh.P, 0.0));
+        imageStore(o_4, px, vec4(sh.N, 0.0));
         return;
     }
     // ---- STAGE 1: spatial reuse of this frame's tmp reservoirs

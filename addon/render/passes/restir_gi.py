@@ -19,7 +19,8 @@ function, the Jacobian and the stages).
   (its candidate count M).
 
 Reservoirs are graph-owned history (``restir_gi.pos/nrm/rad`` and the visible point they were
-made for, ``restir_gi.vpos/vnrm``), reset on a camera cut, a parameter change and scene edits
+made for, ``restir_gi.vpos/vnrm``; ``feedback`` 1 keeps the spatial reservoirs there, 0 the
+temporal ones as in the paper, shading then reads ``restir_gi.tmp_*``), reset on a camera cut, a parameter change and scene edits
 that change radiance or positions (geometry, transforms, materials, lights, textures).
 """
 from __future__ import annotations
@@ -69,6 +70,7 @@ class RestirGIPass(Pass):
         Param("jacobian_max", 10.0, 1.0, 1000.0, "reuse refused when the reconnection Jacobian is above this or below its inverse"),
         Param("max_bounces", 12, 1, 64, "Cycles' Max Bounces (total) of the secondary path"),
         Param("rr_start", 3, 1, 64, "Russian roulette after this many bounces"),
+        Param("feedback", 1, 0, 1, "next frame's history: 1 = the spatial reservoirs (RTXDI), 0 = the temporal ones (the paper)"),
     )
     quality_ladder = ({"spatial": 2, "radius": 8.0, "max_bounces": 3}, {"spatial": 4, "radius": 12.0},
                       {"spatial": 6, "radius": 16.0}, {"spatial": 8, "radius": 24.0, "m_cap": 30.0})
@@ -104,23 +106,29 @@ class RestirGIPass(Pass):
 
         gx, gy = rc.groups(8)
         barrier = 0x0008 | 0x0020  # TEXTURE_FETCH | SHADER_IMAGE_ACCESS: the next stage fetches
-        # stage 0: fresh sample + temporal reuse -> tmp
+        # feedback 1: stage 0 -> tmp, stage 1 -> history (the spatial result is next frame's
+        # history); feedback 0: stage 0 -> history, stage 1 -> tmp (the temporal result is)
+        fb = int(self["feedback"]) == 1
+        temporal_out = TMP if fb else HISTORY[:3]
+        spatial_out = HISTORY[:3] if fb else TMP
+        vis = HISTORY[3:]  # both stages write the same visible point
+        # stage 0: fresh sample + temporal reuse
         set_uniform(prog, "u_stage", 0)
         inputs([n + "@prev" for n in HISTORY])
-        for b, name in enumerate(TMP):
+        for b, name in enumerate(temporal_out + vis):
             res[name].bind_to_image(b, read=b == 0, write=True)
         rc.dispatch(prog, gx, gy)
         rc.ctx.memory_barrier(barrier)
-        # stage 1: spatial reuse -> final reservoirs (history)
+        # stage 1: spatial reuse
         set_uniform(prog, "u_stage", 1)
-        inputs(TMP + ("restir_gi.vpos@prev", "restir_gi.vnrm@prev"))  # vpos/vnrm unused here
-        for b, name in enumerate(HISTORY):
+        inputs(temporal_out + ("restir_gi.vpos@prev", "restir_gi.vnrm@prev"))  # vpos/vnrm unused here
+        for b, name in enumerate(spatial_out + vis):
             res[name].bind_to_image(b, read=b == 0, write=True)
         rc.dispatch(prog, gx, gy)
         rc.ctx.memory_barrier(barrier)
-        # stage 2: shading, effect images, debug views
+        # stage 2: shading from the spatial reservoirs, effect images, debug views
         set_uniform(prog, "u_stage", 2)
-        inputs(HISTORY)
+        inputs(spatial_out + vis)
         for b, name in enumerate((COLOR, AOV_DIFFUSE, AOV_GLOSSY, VIEW_W, VIEW_M)):
             res[name].bind_to_image(b, read=b == 0, write=True)
         rc.dispatch(prog, gx, gy)

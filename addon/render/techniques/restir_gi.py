@@ -20,6 +20,7 @@ follow PT. Compared with Cycles "full". Docs: docs/techniques/RESTIR_GI.md.
 | jacobian_max | 1–1000 | reuse refused beyond this Jacobian (or below its inverse) |
 | max_bounces | 1–64 | Cycles' Max Bounces of the secondary path |
 | rr_start | 1–64 | Russian roulette after this many bounces |
+| feedback | 0–1 | next frame's history: 1 = spatial reservoirs (RTXDI), 0 = temporal ones (the paper) |
 
 Quality ladder (spatial, radius): 0 = 2, 8 px (and 3 bounces); 1 = 4, 12; 2 = 6, 16;
 3 = 8, 24 (M cap 30). Warm-up: 8 frames before an F12 render accumulates.
