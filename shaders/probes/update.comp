@@ -78,16 +78,20 @@ void main() {
         wsum += w;
 #endif
     }
+#ifdef UPDATE_IRRADIANCE
+    // No front-face ray in this texel's hemisphere (a probe behind a wall or in geometry sees
+    // only back faces there): it receives nothing, so it decays towards 0 like any texel whose
+    // light went out. (Keeping the stored value instead left such texels stuck at whatever a
+    // stray ray once gave them: stuck-bright probes after a light was switched off.)
+    vec3 blend = wsum > 1e-12 ? sum / wsum * PI : vec3(0.0);
+#else
     if (wsum <= 1e-12) {
-#ifdef PROBE_STATS
-        imageStore(o_change, texel, vec4(0.0));
-#endif
         imageStore(o_atlas, texel, prev);
         return;
     }
     vec3 blend = sum / wsum;
+#endif
 #ifdef UPDATE_IRRADIANCE
-    blend *= PI;
     float age = prev.a;
     float h = u_hysteresis;
     if (age <= 0.0) h = 0.0;
