@@ -95,10 +95,9 @@ def test_restir_gi_svgf_beats_ssdo(scene):
     assert abs(acc.mean() / ref.mean() - 1.0) < 0.15, f"mean {acc.mean() / ref.mean():.3f} of Cycles"
 
 
+@pytest.mark.parametrize("scene", ["cornell"], indirect=True)  # Cornell box only (test time budget)
 def test_reuse_lowers_error_cornell(scene):
     name, sc, sd, ref = scene
-    if name != "cornell":
-        pytest.skip("measured on the Cornell box only (test time budget)")
     try:
         on = [relmse(r.image, ref) for r in frames(sd, "RESTIR_GI", 12, "reuse_on")[-4:]]
         session.render(sd, "RESTIR_GI", 1, 1, warmup=False, session="reuse_off")
@@ -111,10 +110,9 @@ def test_reuse_lowers_error_cornell(scene):
     assert e_on < 0.7 * e_off, f"reuse {e_on:.4f} vs none {e_off:.4f}"
 
 
+@pytest.mark.parametrize("scene", ["cornell"], indirect=True)  # Cornell box only (test time budget)
 def test_aovs_and_debug_views(scene):
     name, sc, sd, ref = scene
-    if name != "cornell":
-        pytest.skip("Cornell box only (test time budget)")
     try:
         r = frames(sd, "RESTIR_GI", 3, "aov")[-1]
         d = session.render(sd, "DIRECT", 1, 1, warmup=False, session="aov_direct")
