@@ -192,3 +192,24 @@ def test_direct_matches_cycles(light_kind):
         assert err <= THRESHOLD, f"{light_kind}: relMSE {err:.4f} > {THRESHOLD}"
     finally:
         bpy.data.scenes.remove(sc)
+
+
+def test_emissive_walls_do_not_light_themselves():
+    """A closed room whose every wall is diffuse (albedo 0.8) and emits radiance 1: Cycles
+    "direct" is emission + one bounce of the other walls = 1.8 everywhere. A point of an
+    emissive wall must not receive that wall's own light (its polygon integral lies in the
+    horizon plane); before the fix DIRECT gave ~2.56 (the own wall counted as a full hemisphere)."""
+    import sys
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import scenes_probes
+
+    sc = scenes_probes.build("furnace_room", 24)
+    try:
+        ref = reference.get_reference(sc, "direct", 64).image[..., :3]
+        res = session.render(export_scene(_depsgraph(sc)), "DIRECT", 1, 4)
+        ratio = float(res.image[..., :3].mean() / ref.mean())
+        print(f"furnace_room: DIRECT mean {res.image[..., :3].mean():.4f}, Cycles direct {ref.mean():.4f}, "
+              f"ratio {ratio:.4f}")
+        assert abs(ratio - 1.0) < 0.05, f"DIRECT / Cycles direct = {ratio:.3f} in the glowing closed room"
+    finally:
+        bpy.data.scenes.remove(sc)

@@ -111,8 +111,15 @@ float area_light_irradiance_factor(Light L, vec3 p, vec3 n) {
     return abs(polygon_irradiance_factor(verts, count, n));
 }
 
-// Irradiance factor of one emissive triangle (two-sided emitter).
+// Irradiance factor of one emissive triangle (two-sided emitter). A point in the triangle's
+// own plane (a point of the emitting surface itself, or of a coplanar neighbour) sees it
+// edge-on: 0. Without this test the clipped polygon lies in the horizon plane and the formula
+// returns the in-plane angle it subtends (the whole hemisphere, pi, for a point inside it):
+// an emissive wall lit itself with its own full radiance.
 float triangle_irradiance_factor(vec3 a, vec3 b, vec3 c, vec3 p, vec3 n) {
+    vec3 ng = cross(b - a, c - a);
+    float area2 = length(ng);
+    if (abs(dot(p - a, ng)) <= 1e-4 * area2 * sqrt(area2) + 1e-12) return 0.0;
     vec3 verts[MAX_POLY];
     verts[0] = a - p; verts[1] = b - p; verts[2] = c - p;
     return abs(polygon_irradiance_factor(verts, 3, n));
