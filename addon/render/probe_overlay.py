@@ -15,11 +15,8 @@ dispatch looping over every probe per ray: volumes up to ``MAX_PROBES`` probes a
 """
 from __future__ import annotations
 
-import threading
-
 import numpy as np
 
-from .gl import PRIORITY_INTERACTIVE, get_gl
 from .gpu_scene import set_uniform
 from .passes.gbuffer import POSITION
 from .passes.probes import IRR, STATE, find_volume
@@ -68,41 +65,18 @@ def composite(image: np.ndarray, overlay: np.ndarray) -> np.ndarray:
     return out
 
 
+def _post(sess, scene, res):
+    """``session.submit_render``'s post hook: the overlay composited over ``res.image``."""
+    ov = overlay_rgba(sess, scene)
+    if ov is not None and ov.shape[:2] == res.image.shape[:2]:
+        res.image = composite(res.image, ov)
+        res.aovs["ProbeOverlay"] = ov
+    return res
+
+
 def submit_render(scene, technique: str, quality: int, samples: int, *, session, on_done=None, **options):
     """``session.submit_render`` with the probe overlay composited over the result's image
     (on the GL thread, before the returned future completes). Same arguments and future."""
     from . import session as S
-    gl = get_gl()
-    stop = threading.Event()
-    out = S.RenderFuture(stop)
-    key = session
-
-    def job():
-        sess = S._get_session(key)
-        res = yield from sess.render_steps(scene, technique, int(quality), int(samples), cancel=stop,
-                                           progress=lambda f: setattr(out, "progress", float(f)), **options)
-        ov = overlay_rgba(sess, scene)
-        if ov is not None and ov.shape[:2] == res.image.shape[:2]:
-            res.image = composite(res.image, ov)
-            res.aovs["ProbeOverlay"] = ov
-        return res
-
-    inner = gl.submit_job(job, priority=PRIORITY_INTERACTIVE, key=("session", key))
-
-    def relay(f):
-        try:
-            exc = f.exception()
-        except BaseException as e:  # noqa: BLE001 - cancelled inner future
-            exc = e
-        if exc is not None:
-            out.set_exception(exc)
-        else:
-            out.set_result(f.result())
-        if on_done is not None:
-            try:
-                on_done(out)
-            except Exception:  # noqa: BLE001 - a callback must not kill the GL thread
-                pass
-
-    inner.add_done_callback(relay)
-    return out
+    return S.submit_render(scene, technique, quality, samples, session=session, on_done=on_done, post=_post,
+                           **options)

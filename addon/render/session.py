@@ -356,7 +356,7 @@ class RenderFuture(Future):
 def submit_render(scene: SceneData, technique: str = "DIRECT", quality: int = 1, samples: int = 1, *,
                   cancel: threading.Event | None = None, continue_accumulation: bool = False,
                   keep_history: bool = False, session="final", priority: int = PRIORITY_INTERACTIVE,
-                  on_done=None, **options) -> RenderFuture:
+                  on_done=None, post=None, **options) -> RenderFuture:
     """Queue a render on the GL thread and return at once (the viewport's entry point).
 
     The render runs as cooperative steps (one frame each, :meth:`Session.render_steps`): a
@@ -364,7 +364,9 @@ def submit_render(scene: SceneData, technique: str = "DIRECT", quality: int = 1,
     next frame of a longer job (an F12 accumulation, a sweep), so it waits for at most one
     frame of them. Renders of one session run in submission order. ``on_done(future)`` is
     called on the GL thread when the render ends (e.g. ``RenderEngine.tag_redraw``); the
-    result (or the exception: ``Cancelled``, ``SceneError``, ...) is in the future."""
+    result (or the exception: ``Cancelled``, ``SceneError``, ...) is in the future.
+    ``post(session, scene, result) -> result``, when given, runs on the GL thread after the
+    render and before the future completes (e.g. the probe overlay, ``probe_overlay.py``)."""
     techniques.get(technique)  # unknown ids fail here, on the caller's thread
     gl = get_gl()
     stop = cancel if isinstance(cancel, threading.Event) else threading.Event()
@@ -375,9 +377,16 @@ def submit_render(scene: SceneData, technique: str = "DIRECT", quality: int = 1,
 
     def job():
         sess = _get_session(session)
-        return sess.render_steps(scene, technique, int(quality), int(samples), cancel=stop, progress=progress,
-                                 continue_accumulation=continue_accumulation, keep_history=keep_history,
-                                 **options)
+        steps = sess.render_steps(scene, technique, int(quality), int(samples), cancel=stop, progress=progress,
+                                  continue_accumulation=continue_accumulation, keep_history=keep_history,
+                                  **options)
+        if post is None:
+            return steps
+
+        def steps_then_post():
+            res = yield from steps
+            return post(sess, scene, res)
+        return steps_then_post()
 
     inner = gl.submit_job(job, priority=priority, key=("session", session))
 
