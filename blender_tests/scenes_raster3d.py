@@ -50,4 +50,15 @@ def build(name: str, resolution: int = 48, *, lit_camera: bool = False):
     return sc
 
 
-__all__ = ["SCENES", "build", "math"]
+def move_light_and_camera(sc, k: int) -> None:
+    """Frame ``k`` of the stability tests' motion: the scene's first light and its camera
+    move a little every frame (test_raster3d and test_vxgi flicker tests)."""
+    light = next(o for o in sc.objects if o.type == "LIGHT")
+    cam = sc.camera
+    light.location.x = -0.3 + 0.12 * k
+    light.location.y = 0.1 * math.sin(k)
+    cam.location.x = 0.05 * k
+    cam.location.z = 1.0 + 0.02 * k
+
+
+__all__ = ["SCENES", "build", "move_light_and_camera", "math"]

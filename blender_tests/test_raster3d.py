@@ -173,21 +173,12 @@ def test_thin_wall_leak_and_geometry_volume():
         bpy.data.scenes.remove(lit)
 
 
-def _move(sc, k):
-    light = next(o for o in sc.objects if o.type == "LIGHT")
-    cam = sc.camera
-    light.location.x = -0.3 + 0.12 * k
-    light.location.y = 0.1 * math.sin(k)
-    cam.location.x = 0.05 * k
-    cam.location.z = 1.0 + 0.02 * k
-
-
 def test_moving_light_and_camera_no_flicker():
     sc = demo_scenes.build_demo("cornell", resolution=32)
     try:
         cyc, ours = [], {t: [] for t in TECHS}
         for k in range(6):
-            _move(sc, k)
+            scenes_raster3d.move_light_and_camera(sc, k)
             sd = _export(sc)
             cyc.append(reference.render_cycles(sc, 64, "one_bounce")[0][..., :3])
             for tech in TECHS:

@@ -18,7 +18,6 @@ sweeps, the 60-frame stability run and the leak table are in scripts/bench_vxgi.
 """
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import bpy
@@ -158,22 +157,13 @@ def test_thin_wall_leak_is_measured():
         bpy.data.scenes.remove(lit)
 
 
-def _move(sc, k):
-    light = next(o for o in sc.objects if o.type == "LIGHT")
-    cam = sc.camera
-    light.location.x = -0.3 + 0.12 * k
-    light.location.y = 0.1 * math.sin(k)
-    cam.location.x = 0.05 * k
-    cam.location.z = 1.0 + 0.02 * k
-
-
 def test_moving_light_and_camera_no_flicker():
     """The method of test_raster3d (6 frames here, 60 in scripts/bench_vxgi.py --stability)."""
     sc = demo_scenes.build_demo("cornell", resolution=32)
     try:
         ours, cyc = [], []
         for k in range(6):
-            _move(sc, k)
+            scenes_raster3d.move_light_and_camera(sc, k)
             sd = _export(sc)
             res = session.render(sd, "VXGI", Q, 2, keep_history=True, session="vxgi_motion")
             img = res.image[..., :3]
