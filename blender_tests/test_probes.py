@@ -27,16 +27,12 @@ import pytest
 
 import scenes_probes
 from gi_preview.blender import demo_scenes, reference
-from gi_preview.blender.export import export_scene
 from gi_preview.compare import metrics
 from gi_preview.render import session
+from _helpers import export as _export
 
 RES = 32
 SPP = 128
-
-
-def _export(sc):
-    return export_scene(reference.evaluated_depsgraph(sc))
 
 
 @pytest.mark.parametrize("scene", ["white_room", "furnace"])

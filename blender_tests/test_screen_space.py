@@ -52,9 +52,9 @@ import pytest
 
 from gi_preview.blender import demo_scenes, reference
 from gi_preview.blender.demo_scenes import make_principled, make_world
-from gi_preview.blender.export import export_scene
 from gi_preview.compare import metrics
 from gi_preview.render import session
+from _helpers import export as _export, dump_exr
 
 import scenes_screen_space as repro
 
@@ -62,17 +62,8 @@ TECHS = ("SSAO", "HBAO", "SSDO", "SSR")
 ARTIFACTS = Path(__file__).resolve().parent / "_artifacts" / "screen_space"
 
 
-def _export(sc):
-    return export_scene(reference.evaluated_depsgraph(sc))
-
-
 def _dump(name, **images):
-    from gi_preview.compare import imageio
-
-    reference.ensure_oiio()
-    ARTIFACTS.mkdir(parents=True, exist_ok=True)
-    for k, img in images.items():
-        imageio.write_exr(str(ARTIFACTS / f"{name}_{k}.exr"), np.asarray(img, np.float32))
+    dump_exr(ARTIFACTS, name, **images)
 
 
 def _ao3(res):

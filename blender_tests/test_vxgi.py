@@ -25,9 +25,9 @@ import numpy as np
 import pytest
 
 from gi_preview.blender import demo_scenes, reference
-from gi_preview.blender.export import export_scene
 from gi_preview.compare import metrics
 from gi_preview.render import session
+from _helpers import export as _export, dump_exr, mean_ratio as _ratio
 from gi_preview.render.gl import get_gl
 
 import scenes_raster3d
@@ -50,21 +50,8 @@ def vxgi_registered():
         techniques.REGISTRY.pop("VXGI", None)
 
 
-def _export(sc):
-    return export_scene(reference.evaluated_depsgraph(sc))
-
-
 def _dump(name, **images):
-    from gi_preview.compare import imageio
-
-    reference.ensure_oiio()
-    ARTIFACTS.mkdir(parents=True, exist_ok=True)
-    for k, img in images.items():
-        imageio.write_exr(str(ARTIFACTS / f"{name}_{k}.exr"), np.asarray(img, np.float32))
-
-
-def _ratio(img, ref):
-    return float(img[..., :3].mean() / max(ref[..., :3].mean(), 1e-12))
+    dump_exr(ARTIFACTS, name, **images)
 
 
 def _render(sd, sess, props=None, frames=FRAMES, quality=Q, **kw):
