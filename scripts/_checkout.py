@@ -23,3 +23,15 @@ def import_checkout_package():
     os.symlink(ADDON, os.path.join(d, "gi_preview"), target_is_directory=True)
     sys.path.insert(0, d)
     return importlib.import_module("gi_preview")
+
+
+def setup_blender():
+    """The benchmark scripts' set-up: a hermetic Blender user folder (before ``bpy`` is
+    imported), this checkout's ``gi_preview`` imported and registered. Returns the package."""
+    os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="gi_preview_user_"))
+    pkg = import_checkout_package()
+    import bpy  # noqa: F401  (Blender first, then the add-on's registration)
+    if not getattr(pkg, "_registered_by_checkout", False):
+        pkg.register()
+        pkg._registered_by_checkout = True
+    return pkg

@@ -30,24 +30,18 @@ import math
 import os
 import subprocess
 import sys
-import tempfile
 import time
-from pathlib import Path
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 
 
 def _bpy_env():
-    os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp())
-    pkg = Path(tempfile.mkdtemp())
-    (pkg / "gi_preview").symlink_to(Path(REPO) / "addon", target_is_directory=True)
-    sys.path.insert(0, str(pkg))
+    sys.path.insert(0, HERE)
     sys.path.insert(0, os.path.join(REPO, "blender_tests"))
-    import bpy  # noqa: F401
-    import gi_preview
+    from _checkout import setup_blender
 
-    gi_preview.register()
+    setup_blender()
 
 
 def _set_props(sess, props):

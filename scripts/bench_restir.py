@@ -24,9 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
-import tempfile
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -53,14 +51,10 @@ def main():
     ap.add_argument("--only", default="", help="comma-separated config names (default: all)")
     ap.add_argument("--filters", action="store_true", help="also the filters on cornell / sunlit_room")
     a = ap.parse_args()
-    os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp())
-    pkg = Path(tempfile.mkdtemp())
-    (pkg / "gi_preview").symlink_to(REPO / "addon", target_is_directory=True)
-    sys.path.insert(0, str(pkg))
+    sys.path.insert(0, str(REPO / "scripts"))
+    from _checkout import setup_blender
+    setup_blender()
     import numpy as np
-    import bpy  # noqa: F401
-    import gi_preview
-    gi_preview.register()
     from gi_preview.blender import demo_scenes as D
     from gi_preview.blender.export import export_scene
     from gi_preview.blender.reference import evaluated_depsgraph, get_reference

@@ -23,9 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -34,13 +32,9 @@ OUT = REPO / "docs" / "results" / "restir_gi"
 
 
 def setup():
-    os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp())
-    pkg = Path(tempfile.mkdtemp())
-    (pkg / "gi_preview").symlink_to(REPO / "addon", target_is_directory=True)
-    sys.path.insert(0, str(pkg))
-    import bpy  # noqa: F401
-    import gi_preview
-    gi_preview.register()
+    sys.path.insert(0, str(REPO / "scripts"))
+    from _checkout import setup_blender
+    setup_blender()
 
 
 def rel(x, ref):
