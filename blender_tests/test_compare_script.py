@@ -42,9 +42,10 @@ def _load_script():
 def test_gi_compare_cornell(tmp_path, monkeypatch, capsys):
     """The script's own entry point ``main()`` with a command line (argument parsing, the
     checkout's add-on, every baseline, the report), run in this process: the interpreter,
-    Blender's start-up, the GL context and EEVEE's first-render shader compilation (~35 s on
-    llvmpipe) are then paid once per test run instead of once more in a child process. The
-    script as a separate process is exercised by test_gi_compare_reports_missing_opengl."""
+    Blender's start-up and the GL thread/context are shared with the other tests instead of
+    paid again in a child process (EEVEE's first render of this scene, ~35 s on llvmpipe, is
+    paid here either way). The script as a separate process is exercised by
+    test_gi_compare_reports_missing_opengl."""
     pytest.importorskip("bpy")
     out = tmp_path / "out"
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))  # hermetic reference cache
