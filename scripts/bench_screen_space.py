@@ -122,8 +122,9 @@ def main(argv=None):
                             for c in cur]
             log(f"{scene_name}: Cycles {kind} curve " + ", ".join(
                 f"{c['spp']}spp {c['time_ms']:.0f}ms relMSE {c['relmse']:.4f}" for c in curves[kind]))
+        # a run of some techniques keeps the other techniques' entries of an earlier run
         entry = {"references": {k: {"spp": r.spp, "time_ms": r.time_ms} for k, r in refs.items()},
-                 "cycles_curves": curves, "techniques": {}}
+                 "cycles_curves": curves, "techniques": dict(out["scenes"].get(scene_name, {}).get("techniques", {}))}
         for tech in ["DIRECT"] + techs:
             for q in (levels if tech != "DIRECT" else [1]):
                 session.render(sd, tech, q, 1)  # warm-up: shader compilation, uploads
@@ -236,6 +237,12 @@ def repro(opts):
     os.makedirs(opts.out, exist_ok=True)
     techs = ["DIRECT"] + [t for t in opts.techniques.split(",") if t]
     out = {"res": opts.res, "ref_spp": opts.ref_spp, "samples": opts.samples, "scenes": {}}
+    path = os.path.join(REPO, "docs", "results", "screen_space_repro.json")
+    if os.path.exists(path):  # a run of some scenes or techniques keeps the others of an earlier run
+        with open(path) as f:
+            old = json.load(f)
+        if old.get("res") == opts.res:
+            out["scenes"] = old.get("scenes", {})
 
     def png(name, img):
         imageio.write_png(os.path.join(opts.out, name), metrics.view_standard(img))
@@ -246,7 +253,8 @@ def repro(opts):
         ref, ref_ms = reference.render_cycles(sc, opts.ref_spp, "one_bounce")
         png(f"repro_{name}_cycles_one_bounce.png", ref)
         masks = S.masks(name, sd, S.material_ids(sd))
-        entry = {"cycles_ms": ref_ms, "pixels": {k: int(m.sum()) for k, m in masks.items()}, "techniques": {}}
+        entry = {"cycles_ms": ref_ms, "pixels": {k: int(m.sum()) for k, m in masks.items()},
+                 "techniques": dict(out["scenes"].get(name, {}).get("techniques", {}))}
         for k, m in masks.items():
             entry.setdefault("cycles_tv", {})[k] = S.total_variation(ref, m)
         for tech in techs:
@@ -279,7 +287,6 @@ def repro(opts):
             log(f"{name} {tech}: " + ", ".join(f"{k} {v:.4f}" for k, v in e.items() if isinstance(v, float)))
         out["scenes"][name] = entry
         bpy.data.scenes.remove(sc)
-    path = os.path.join(REPO, "docs", "results", "screen_space_repro.json")
     with open(path, "w") as f:
         json.dump(out, f, indent=1, default=float)
     log(f"wrote {path}")

@@ -13,6 +13,12 @@
 // Far field (an extension of the paper's near-field samples): a direction open within the
 // radius is marched further (far_blocker, common.glsl); a surface met there is a sender
 // too, so the bounce from walls beyond the radius (a room's far side) is not lost.
+// Off screen (a sample, or the far-field march, left the screen: screen space does not know
+// what is there): with SSDO_WORLD the direction is traced through the scene with the shared
+// ray tracer (lib/scene_rt.glsl), at most u_world_rays per pixel and frame; a hit sends its
+// diffuse direct light toward the receiver (next-event estimation at the hit), a miss is open. The
+// untraced off-screen directions take the mean of the traced ones. Without SSDO_WORLD they
+// are unknown: the bounce is the mean over the directions the screen knows.
 // Output (at u_scale of the full resolution): rgb = mean sender radiance over all samples,
 // a = cosine-weighted fraction of directions that stay open (the GI_AO AOV).
 #define USE_SCENE_BUFFERS
@@ -21,6 +27,10 @@
 #include "lib/sampling.glsl"
 #include "lib/brdf.glsl"
 #include "lib/screen.glsl"
+#ifdef SSDO_WORLD
+#include "lib/lights.glsl"
+#include "lib/scene_rt.glsl"
+#endif
 #include "screen_space/common.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -30,6 +40,35 @@ uniform sampler2D u_radiance;  // direct-lit colour (aov.direct)
 uniform int u_samples;
 uniform float u_radius;
 uniform float u_bias;
+
+#ifdef SSDO_WORLD
+uniform int u_world_rays;
+uniform float u_world_distance;
+
+// A direction screen space cannot answer (its sample or far-field march left the screen),
+// traced through the scene with the shared ray tracer: true with the diffuse radiance the
+// surface it hits sends back along it (next-event estimation at the hit, lib/scene_rt.glsl's
+// shade_direct_at: one light, one shadow ray), false = open (the world, which DIRECT
+// already lights with). Diffuse only, as for on-screen senders (view_trust): a glossy hit's
+// light toward the receiver is a caustic path, which one light sample per ray turns into
+// fireflies (glossy_spheres q2: relMSE 0.037 -> 0.080 with it). The surface is made
+// diffuse-only: base colour times (1 - metallic) (1 - its dielectric layer's albedo), the
+// diffuse lobe eval_principled gives.
+bool world_sender(vec3 O, vec3 dir, inout Rng rng, out vec3 L) {
+    SurfaceHit s;
+    L = vec3(0.0);
+    if (!scene_trace(O, dir, 0.0, u_world_distance, s)) return false;
+    vec3 V = -dir, Nh, Ngh, ph;
+    surface_frame(s, V, Nh, Ngh, ph);
+    Surface d = s.bsdf;
+    float layer = (d.f0 > 1e-6 && d.metallic < 1.0) ? dielectric_layer_albedo(d, max(dot(Nh, V), 1e-4)) : 0.0;
+    d.base_color *= (1.0 - d.metallic) * (1.0 - layer);
+    d.metallic = 0.0;
+    d.f0 = 0.0;
+    L = shade_direct_at(d, ph, Nh, Ngh, V, rng, false);
+    return true;
+}
+#endif
 
 void main() {
     ivec2 q = ivec2(gl_GlobalInvocationID.xy);
@@ -47,7 +86,21 @@ void main() {
     vec3 bounce = vec3(0.0);
     float open = 0.0, unknown = 0.0;
     int n = max(u_samples, 1);
-    for (int i = 0; i < n; ++i) {
+#ifdef SSDO_WORLD
+    // the unknown directions traced through the scene: at most u_world_rays per pixel, the
+    // first ones met from a random start in the sample order; the untraced ones take the
+    // mean of the traced ones (same class of direction: off screen)
+    Rng wrng = rng_init(uvec2(px), u_sample, 29u);
+    int start = int(rnd.w * float(n)) % n;
+    vec3 wsum = vec3(0.0);
+    float wtraced = 0.0, wunknown = 0.0;
+#endif
+    for (int k = 0; k < n; ++k) {
+#ifdef SSDO_WORLD
+        int i = (k + start) % n;
+#else
+        int i = k;
+#endif
         float u1 = (float(i) + rnd.y) / float(n);
         float phi = float(i) * 2.39996323;
         vec2 dsk = sqrt(u1) * vec2(cos(phi), sin(phi));
@@ -56,7 +109,19 @@ void main() {
         float s = fract(float(i) * 0.618034 + rnd.z);
         vec3 S = O + dir * (u_radius * mix(0.1, 1.0, s));
         vec2 sp = to_pixel(S);
-        if (!on_screen(sp)) { open += 1.0; unknown += 1.0; continue; }   // unknown to screen space
+        if (!on_screen(sp)) {
+#ifdef SSDO_WORLD
+            wunknown += 1.0;
+            if (wtraced < float(u_world_rays)) {
+                vec3 Lw;
+                wtraced += 1.0;
+                if (world_sender(O, dir, wrng, Lw)) wsum += Lw;
+            }
+#else
+            open += 1.0; unknown += 1.0;
+#endif
+            continue;
+        }
         ivec2 hp = ivec2(sp);
         GPixel h = fetch_g(hp);
         if (!h.valid) { open += 1.0; continue; }
@@ -72,8 +137,17 @@ void main() {
             // the sender, otherwise the direction stays open
             ivec2 fp = far_blocker(O, dir, u_radius, fract(s + 0.5));
             if (fp.x == -2) {
+#ifdef SSDO_WORLD
+                wunknown += 1.0;
+                if (wtraced < float(u_world_rays)) {
+                    vec3 Lw;
+                    wtraced += 1.0;
+                    if (world_sender(O, dir, wrng, Lw)) wsum += Lw;
+                }
+#else
                 open += 1.0;
                 unknown += 1.0;
+#endif
             } else if (fp.x < 0) {
                 open += 1.0;
             } else {
@@ -84,7 +158,14 @@ void main() {
             }
         }
     }
-    // the bounce is the mean over the directions whose outcome screen space knows; the
-    // unknown ones (off screen) are assumed to look like those (not open, not black)
+#ifdef SSDO_WORLD
+    if (wtraced > 0.0) bounce += wsum * (wunknown / wtraced);
+    // GI_AO: an off-screen direction counts as open, whatever the trace met (the AO AOV's
+    // meaning is the screen-space occlusion within the radius and the on-screen far field)
+    open += wunknown;
+#endif
+    // without SSDO_WORLD the bounce is the mean over the directions whose outcome screen
+    // space knows; the unknown ones (off screen) are assumed to look like those (not open,
+    // not black); with it, unknown stays 0
     imageStore(o_ssdo, q, vec4(sanitize(bounce / max(float(n) - unknown, 1.0)), open / float(n)));
 }

@@ -5,8 +5,11 @@ directions receive the direct-lit radiance ``aov.direct`` of the pixel that bloc
 when it faces the receiver, weighted by how far that radiance toward the camera stands for
 the radiance sent to the receiver (its diffuse share; its glossy share only near the camera
 direction); directions open within the radius are marched further and a surface met there
-sends too; directions that leave the screen are unknown and the bounce is the mean over the
-known ones) → ``ssdo_temporal`` → ``ssdo_blur`` → ``ssdo_composite``
+sends too; directions whose sample or march leaves the screen are traced through the scene
+with the shared ray tracer, up to ``world_rays`` per pixel and frame, the hit sending its
+direct light toward the receiver (lib/scene_rt.glsl); with ``world_rays`` 0 they are unknown
+and the bounce is the mean over the known ones) → ``ssdo_temporal`` → ``ssdo_blur`` →
+``ssdo_composite``
 (``color += albedo_d * bounce``; DIRECT already lights with the world, shadowed by its
 world-light maps). The fraction of directions that stay open is the ``GI_AO`` AOV.
 Compared with Cycles "one_bounce" (and "full"). See docs/techniques/SSDO.md.
@@ -19,11 +22,12 @@ Compared with Cycles "one_bounce" (and "full"). See docs/techniques/SSDO.md.
 | scale | 0.25–1 | resolution scale of the SSDO pass |
 | far_points | 0–32 | far-field march points past the radius (0 = the radius only) |
 | far_distance | 0–1e4 | far-field march length (0 = the scene's bounding diagonal) |
+| world_rays | 0–32 | off-screen directions traced through the scene per pixel and frame (0: mean of the on-screen ones) |
 | blur_radius | 0–8 | bilateral kernel radius (pixels) |
 | max_history | 1–1024 | temporal frames averaged at most |
 
-Quality ladder (samples, radius, scale, blur): 0 = 4, 1.0, 0.5, 3; 1 = 8, 1.5, 1, 2;
-2 = 16, 2.0, 1, 2; 3 = 32, 2.5, 1, 1.
+Quality ladder (samples, radius, scale, world_rays, blur): 0 = 4, 1.0, 0.5, 0, 3;
+1 = 8, 1.5, 1, 2, 2; 2 = 16, 2.0, 1, 3, 2; 3 = 32, 2.5, 1, 4, 1.
 """
 from __future__ import annotations
 
@@ -55,16 +59,26 @@ class SSDOPass(AOPass):
         Param("bias", 0.01, 0.0, 1.0, "depth bias and normal offset (scene units)"),
         Param("scale", 1.0, 0.25, 1.0, "resolution scale"),
         *FAR_PARAMS,
+        Param("world_rays", 2, 0, 32, "off-screen directions traced through the scene per pixel and frame "
+              "(0 = none: they take the mean of the on-screen ones)"),
     )
-    quality_ladder = ({"samples": 4, "radius": 1.0, "scale": 0.5}, {"samples": 8, "radius": 1.5, "scale": 1.0},
-                      {"samples": 16, "radius": 2.0, "scale": 1.0}, {"samples": 32, "radius": 2.5, "scale": 1.0})
+    quality_ladder = ({"samples": 4, "radius": 1.0, "scale": 0.5, "world_rays": 0},
+                      {"samples": 8, "radius": 1.5, "scale": 1.0, "world_rays": 2},
+                      {"samples": 16, "radius": 2.0, "scale": 1.0, "world_rays": 3},
+                      {"samples": 32, "radius": 2.5, "scale": 1.0, "world_rays": 4})
 
     def __init__(self, quality=None, **kw):
         super().__init__(quality, **kw)
         self.reads = self.reads + (DIRECT_RADIANCE,)
 
     def execute(self, rc, frame):
-        prog = self.program(rc, self.shader)
+        world_rays = int(self["world_rays"])
+        if world_rays > 0:  # off-screen directions traced through the scene (shared ray tracer)
+            rt = rc.scene.rt()
+            prog = rc.programs.compute(self.shader, {**rt.defines, "SSDO_WORLD": 1})
+            rt.bind(prog)
+        else:
+            prog = self.program(rc, self.shader)
         bind_frame(rc, prog, frame)
         units = Units(1)
         bind_gbuffer(rc, prog, units)
@@ -75,6 +89,9 @@ class SSDOPass(AOPass):
             lo, hi = rc.scene.scene.world_bounds()
             far = max(float(np.linalg.norm(np.asarray(hi) - np.asarray(lo))), 1e-3)
         set_uniform(prog, "u_far_distance", far)
+        if world_rays > 0:
+            set_uniform(prog, "u_world_rays", world_rays)
+            set_uniform(prog, "u_world_distance", far)
         set_uniform(prog, "u_far_points", int(self["far_points"]))
         size = self.out_size(rc)
         rc.resources[self.writes[0]].bind_to_image(0, read=False, write=True)
