@@ -43,16 +43,23 @@ uniform int u_mesh_exact_max;
 uniform uint u_sample;
 uniform int u_directional_opacity;  // level-0 opacity towards D: |n.D| (else 1)
 
-// Visibility of the light from the RSM view v (sun): 3x3 depth comparisons.
-float rsm_visibility(int v, vec3 p, float bias) {
-    vec4 c = u_rsm_vp[v] * vec4(p, 1.0);
+// Visibility of the light from the RSM view v (sun) for the surface side at ps (already
+// moved off the surface along nf, the side's normal): 3x3 taps of the view's stored world
+// positions q. A tap occludes when q lies on the light's side of the plane through ps
+// (nf . (q - ps) > 0) and in front of ps along the light (depth within `bias`). The plane
+// test is exact for a planar receiver whatever its slope (q on the receiver's own plane lies
+// `offset` below it), so no depth bias lets the surface near an occluder be lit; a depth
+// bias of a voxel (the former test) lit every point less than a voxel behind a roof or a
+// thin wall (the inside of the sun-lit room's walls under the roof, the dark side of walls).
+float rsm_visibility(int v, vec3 ps, vec3 nf, float bias) {
+    vec4 c = u_rsm_vp[v] * vec4(ps, 1.0);
     if (c.w <= 1e-6) return 1.0;
     vec3 ndc = c.xyz / c.w;
     if (any(greaterThan(abs(ndc.xy), vec2(1.0)))) return 1.0;
     vec4 rect = u_rsm_rect[v];
     bool ortho = u_rsm_origin[v].w > 0.5;
     vec3 org = u_rsm_origin[v].xyz, fwd = u_rsm_fwd[v].xyz;
-    float mp = ortho ? dot(p - org, fwd) : length(p - org);
+    float mp = ortho ? dot(ps - org, fwd) : length(ps - org);
     ivec2 base = ivec2(rect.xy), size = ivec2(rect.zw);
     ivec2 t0 = ivec2((ndc.xy * 0.5 + 0.5) * rect.zw);
     float lit = 0.0;
@@ -62,7 +69,8 @@ float rsm_visibility(int v, vec3 p, float bias) {
             vec4 q = texelFetch(u_rsm_pos, t, 0);
             if (q.w < 0.5) { lit += 1.0; continue; }
             float mq = ortho ? dot(q.xyz - org, fwd) : length(q.xyz - org);
-            lit += (mp <= mq + bias) ? 1.0 : 0.0;
+            bool occ = mq < mp + bias && dot(nf, q.xyz - ps) > 0.0;
+            lit += occ ? 0.0 : 1.0;
         }
     }
     return lit / 9.0;
@@ -79,7 +87,7 @@ float visibility(int li, Light L, vec3 p, vec3 nf, float vs) {
     vec3 ps = p + nf * (u_shadow_offset * vs);
     if (int(L.pos_type.w + 0.5) == LIGHT_SUN && L.axis_w.w > 0.5) {
         int v = rsm_view_of(li);
-        if (v >= 0) return rsm_visibility(v, ps, max(vs, 2.0 * u_rsm_fwd[v].w));
+        if (v >= 0) return rsm_visibility(v, ps, nf, 2.0 * u_rsm_fwd[v].w);
     }
     return light_visibility(L, ps, nf, nf);
 }
@@ -176,10 +184,18 @@ void main() {
         Em += vx_diffuse_cones(p - n * off, -n, vs, u_max_distance, u_step, rot, u_world, float(u_bounce), vis);
     }
     vec3 Lp = rho * INV_PI * Ep, Lm = rho * INV_PI * Em;
+    // Towards D the voxel shows the side facing D over its projected area |n.D|: the
+    // premultiplied radiance is |n.D| L_side, never a mix of the two sides. An edge-on
+    // surface (n.D = 0: every wall of an axis-aligned room for four of the six directions)
+    // shows nothing; it used to show the mean of its two sides, so a cone grazing a
+    // zero-thickness roof or wall saw half of its sun-lit outside (sunlit_room 2.7x Cycles)
+    // or of the lit room behind it (the two_rooms leak, worse with dilation and opacity bias,
+    // which add such voxels or weight them more). The opacity keeps a floor of 0.05 (or is 1
+    // without directional opacity): an edge-on wall still occludes a little.
     for (int f = 0; f < 6; ++f) {
         float s = dot(n, FACE_DIR[f]);
-        vec3 L = s > 0.05 ? Lp : (s < -0.05 ? Lm : 0.5 * (Lp + Lm));
+        vec3 L = s > 0.0 ? Lp : Lm;
         float a = u_directional_opacity == 1 ? max(abs(s), 0.05) : 1.0;
-        imageStore(o_radiance, ivec3(gid.xy, (f * C) * N + gid.z), vec4(sanitize(L) * a, a));
+        imageStore(o_radiance, ivec3(gid.xy, (f * C) * N + gid.z), vec4(sanitize(L) * abs(s), a));
     }
 }
