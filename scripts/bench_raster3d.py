@@ -4,14 +4,15 @@ leak, stability.
 
     flock /tmp/gi_heavy.lock .venv/bin/python scripts/bench_raster3d.py [--parts compare,leak,stability]
         [--scenes cornell,sunlit_room] [--techniques DIRECT,RSM,LPV] [--quality all]
-        [--res 64] [--ref-spp 256] [--samples 8] [--baselines cycles]
+        [--res 64] [--ref-spp 256] [--samples 8] [--baselines cycles,cycles_denoised,eevee]
         [--stability-frames 60] [--out docs/results/raster3d]
+    (--parts summary: only rewrite summary.md from the folders present)
 
-* ``compare``: scripts/gi_compare.py once per scene (each technique at every quality level
+* ``compare``: scripts/gi_compare.py once per scene and technique (each quality level
   against the Cycles reference it models and against "full": relMSE, FLIP, SSIM, time per
-  frame, setup time, equal-error speed-ups against the baselines' curves) into
-  ``<out>/<scene>/``; the mean of each image over the mean of each reference is read back
-  from the EXRs. Table in ``<out>/summary.md``.
+  frame, setup time, equal-error speed-ups against the baselines' curves: Cycles, Cycles +
+  OpenImageDenoise, EEVEE) into ``<out>/<scene>/<TECH>/``; the mean of each image over the
+  mean of each reference is read back from the EXRs. Table in ``<out>/summary.md``.
 * ``leak``: the thin-wall scene of blender_tests/scenes_raster3d.py (two rooms, a wall of
   zero thickness, the light in the left one, the camera in the right one): the dark room's
   mean minus Cycles' (one bounce), over the lit room's mean seen from inside it; LPV with
@@ -52,28 +53,43 @@ def _set_props(sess, props):
 
 
 def part_compare(o, rows):
+    """One gi_compare run per scene and technique into ``<out>/<scene>/<TECH>/`` (a run per
+    technique keeps each locked command short; the summary reads every folder present)."""
+    for scene in o.scenes.split(","):
+        for tech in o.techniques.split(","):
+            out = os.path.join(o.out, scene, tech)
+            cmd = [sys.executable, os.path.join(HERE, "gi_compare.py"), scene, "--techniques", tech,
+                   "--quality", o.quality, "--res", str(o.res), "--ref-spp", str(o.ref_spp),
+                   "--samples", str(o.samples), "--frames", str(o.frames), "--baselines", o.baselines,
+                   "--out", out]
+            print(" ".join(cmd), flush=True)
+            subprocess.run(cmd, check=True)
+    collect(o, rows)
+
+
+def collect(o, rows):
+    """Rows of every ``<out>/<scene>/<TECH>/results.json`` of the requested scenes, with the
+    mean of each image over the mean of its reference read back from the EXRs."""
     from gi_preview.blender import reference
     from gi_preview.compare import imageio
 
     reference.ensure_oiio()
     for scene in o.scenes.split(","):
-        out = os.path.join(o.out, scene)
-        cmd = [sys.executable, os.path.join(HERE, "gi_compare.py"), scene, "--techniques", o.techniques,
-               "--quality", o.quality, "--res", str(o.res), "--ref-spp", str(o.ref_spp),
-               "--samples", str(o.samples), "--frames", str(o.frames), "--baselines", o.baselines,
-               "--out", out]
-        print(" ".join(cmd), flush=True)
-        subprocess.run(cmd, check=True)
-        with open(os.path.join(out, "results.json")) as f:
-            res = json.load(f)
-        refs = {}
-        for r in res.get("results", []):
-            k = r.get("reference")
-            if k not in refs:
-                refs[k] = imageio.read_exr(os.path.join(out, f"reference_{k}.exr"))[..., :3].mean()
-            img = imageio.read_exr(os.path.join(out, r["files"]["exr"]))[..., :3]
-            r["mean_ratio"] = float(img.mean() / max(refs[k], 1e-12))
-            rows.append((scene, r))
+        base = os.path.join(o.out, scene)
+        for tech in sorted(os.listdir(base)) if os.path.isdir(base) else ():
+            out = os.path.join(base, tech)
+            if not os.path.isfile(os.path.join(out, "results.json")):
+                continue
+            with open(os.path.join(out, "results.json")) as f:
+                res = json.load(f)
+            refs = {}
+            for r in res.get("results", []):
+                k = r.get("reference")
+                if k not in refs:
+                    refs[k] = imageio.read_exr(os.path.join(out, f"reference_{k}.exr"))[..., :3].mean()
+                img = imageio.read_exr(os.path.join(out, r["files"]["exr"]))[..., :3]
+                r["mean_ratio"] = float(img.mean() / max(refs[k], 1e-12))
+                rows.append((scene, r))
 
 
 def _speedup(r, b):
@@ -81,6 +97,13 @@ def _speedup(r, b):
     v = sp.get("speedup")
     if isinstance(v, (int, float)):
         return f"{v:.3g}"
+    b = sp.get("bound") or {}
+    if "at_most" in b:  # the technique's error is above the baseline's lowest-spp error
+        return f"≤ {b['at_most']:.3g}"
+    if "at_least" in b:  # below the baseline's highest-spp error
+        return f"≥ {b['at_least']:.3g}"
+    if not sp:
+        return "–"
     return str(sp.get("reason", "")).replace("|", "/")
 
 
@@ -90,7 +113,10 @@ def write_summary(o, rows):
              f"Resolution {o.res}, Cycles {o.ref_spp} spp, {o.samples} accumulated frames, llvmpipe on 2 cores; "
              "per-scene details (images, error maps, baselines) in the scene folders. Mean = mean of the "
              "image over the mean of the reference. Speed-up: the baseline's time to reach the "
-             "technique's error over the technique's time (setup apart).", "",
+             "technique's error over the technique's time (setup apart); ≤ x: the technique's error is "
+             "above the baseline's error at its fewest samples (x = the speed-up at that point, an upper "
+             "bound), ≥ x: below the baseline's error at its most samples (a lower bound). The "
+             "Cycles + OpenImageDenoise and EEVEE curves are measured against the full reference only.", "",
              "| scene | technique | q | reference | relMSE | FLIP | mean | ms/frame | setup ms | "
              + " | ".join(f"speed-up vs {b}" for b in bl) + " |",
              "|---|---|---|---|---|---|---|---|---|" + "---|" * len(bl)]
@@ -213,16 +239,19 @@ def main(argv=None):
     p.add_argument("--ref-spp", type=int, default=256)
     p.add_argument("--samples", type=int, default=8)
     p.add_argument("--frames", type=int, default=3)
-    p.add_argument("--baselines", default="cycles")
+    p.add_argument("--baselines", default="cycles,cycles_denoised,eevee")
     p.add_argument("--stability-frames", type=int, default=60)
     p.add_argument("--out", default=os.path.join(REPO, "docs", "results", "raster3d"))
     o = p.parse_args(argv)
     os.makedirs(o.out, exist_ok=True)
     _bpy_env()
     parts = o.parts.split(",")
-    if "compare" in parts:
+    if "compare" in parts or "summary" in parts:
         rows = []
-        part_compare(o, rows)
+        if "compare" in parts:
+            part_compare(o, rows)
+        else:
+            collect(o, rows)
         write_summary(o, rows)
     if "leak" in parts:
         part_leak(o)

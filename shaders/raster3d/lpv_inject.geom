@@ -6,7 +6,10 @@
 // whose box holds p while the next finer one does not (lpv_common.glsl).
 // LPV_GV (cascade u_only_cascade): the surfel's blocking of the flux crossing between two
 // cell centres along axis a, area·|n_a| / cell², added to channel a of the staggered cell
-// floor(g - ½ e_a). A surfel wider than a cell is split into k x k sub-surfels (k <= 3) in
+// floor(g - ½ e_a), and area·|n_a| / cell² · g_a (g in cell units) to channel a of the
+// depth volume (second target): divided by the blocking it is the blockers' mean position
+// along the axis, so the lookup knows on which side of a point inside the staggered cell
+// the blockers lie. A surfel wider than a cell is split into k x k sub-surfels (k <= 3) in
 // its tangent plane, so a coarse RSM or G-buffer leaves no holes in a fine cascade.
 #include "lib/sh.glsl"
 #include "raster3d/lpv_common.glsl"
@@ -53,9 +56,10 @@ void main() {
             vec3 q = p + side * ((float(i) + 0.5) / float(k) - 0.5) * t1
                        + side * ((float(j) + 0.5) / float(k) - 0.5) * t2;
             vec3 g = lpv_cell_coord(c, q);
-            emit_cell(ivec3(floor(g - vec3(0.5, 0.0, 0.0))), c, vec4(blk.x, 0.0, 0.0, 0.0), vec4(0.0), vec4(0.0));
-            emit_cell(ivec3(floor(g - vec3(0.0, 0.5, 0.0))), c, vec4(0.0, blk.y, 0.0, 0.0), vec4(0.0), vec4(0.0));
-            emit_cell(ivec3(floor(g - vec3(0.0, 0.0, 0.5))), c, vec4(0.0, 0.0, blk.z, 0.0), vec4(0.0), vec4(0.0));
+            vec3 bd = blk * g;  // blocking-weighted position along the axis (the blockers' depth)
+            emit_cell(ivec3(floor(g - vec3(0.5, 0.0, 0.0))), c, vec4(blk.x, 0.0, 0.0, 0.0), vec4(bd.x, 0.0, 0.0, 0.0), vec4(0.0));
+            emit_cell(ivec3(floor(g - vec3(0.0, 0.5, 0.0))), c, vec4(0.0, blk.y, 0.0, 0.0), vec4(0.0, bd.y, 0.0, 0.0), vec4(0.0));
+            emit_cell(ivec3(floor(g - vec3(0.0, 0.0, 0.5))), c, vec4(0.0, 0.0, blk.z, 0.0), vec4(0.0, 0.0, bd.z, 0.0), vec4(0.0));
         }
     }
 #else

@@ -26,7 +26,7 @@
      face normal; the faces' solid angles (far 0.4007 sr, side 0.4234 sr) are integrated in
      ``face_solid_angles``. Every step is added to the accumulated volume.
   The volume is recomputed only when the scene (GPUScene.version), the camera's view, the
-  parameters or the frame size changed: frames that differ only by the sub-pixel jitter
+  parameters, the RSM views (their matrices and resolution) or the frame size changed: frames that differ only by the sub-pixel jitter
   (F12 accumulation, a still viewport) reuse it.
   Grids are TEX2D_ARRAY of ``grid`` x ``grid`` x (``grid`` · slabs) layers, rgba32f, one per
   colour channel (4 SH coefficients): moderngl cannot attach a 3D texture to a framebuffer,
@@ -50,6 +50,7 @@ from .rsm import INDIRECT, RSM_FLUX, RSM_NRM, RSM_POS, RSM_VIEWS
 from .screen_space import camera_vectors
 
 LPV_R, LPV_G, LPV_B, LPV_GV, LPV_GRID = "lpv.r", "lpv.g", "lpv.b", "lpv.gv", "lpv.grid"
+LPV_GVD = "lpv.gv_depth"  # per axis: blocking x the blockers' position (cell units)
 MAX_CASCADES = 4
 
 
@@ -131,9 +132,10 @@ class LPVPass(Pass):
     name = "lpv"
     provides = INDIRECT
     reads = (RSM_POS, RSM_NRM, RSM_FLUX, RSM_VIEWS, POSITION, NORMAL)
-    writes = (LPV_R, LPV_G, LPV_B, LPV_GV, LPV_GRID)
+    writes = (LPV_R, LPV_G, LPV_B, LPV_GV, LPV_GVD, LPV_GRID)
     declared = (Res(LPV_R, managed=False, check="finite"), Res(LPV_G, managed=False, check="finite"),
                 Res(LPV_B, managed=False, check="finite"), Res(LPV_GV, managed=False, check="finite"),
+                Res(LPV_GVD, managed=False, check="finite"),
                 Res(LPV_GRID, kind=HOST, managed=False, check="none"))
     history_resets = frozenset()
     params = (
@@ -151,7 +153,7 @@ class LPVPass(Pass):
     def __init__(self, quality=None, **props):
         super().__init__(quality, **props)
         self.tex = None
-        self.fbo = self.gv = self.gv_fbo = None
+        self.fbo = self.gv = self.gvd = self.gv_fbo = None
         self.vao = self.gv_vao = self.gb_vao = None
         self.iterations = 0
         self.grid = None
@@ -165,8 +167,10 @@ class LPVPass(Pass):
         self.release()
         self.tex = {}
         self.gv = rc.ctx.texture_array(gv_size, 4, dtype="f4")
-        self.gv.filter = (moderngl.NEAREST, moderngl.NEAREST)
-        self.gv_fbo = rc.ctx.framebuffer(color_attachments=[self.gv])
+        self.gvd = rc.ctx.texture_array(gv_size, 4, dtype="f4")
+        for t in (self.gv, self.gvd):
+            t.filter = (moderngl.NEAREST, moderngl.NEAREST)
+        self.gv_fbo = rc.ctx.framebuffer(color_attachments=[self.gv, self.gvd])
         for k in ("acc", "a", "b"):
             ts = [rc.ctx.texture_array(size, 4, dtype="f4") for _ in range(3)]
             for t in ts:
@@ -188,8 +192,10 @@ class LPVPass(Pass):
         import moderngl
 
         G, C = int(self["grid"]), int(self["cascades"])
+        views = rc.resources[RSM_VIEWS]
         key = (id(rc.scene), getattr(rc.scene, "version", None), np.asarray(frame.view, np.float64).tobytes(),
-               repr(self.get_properties()), rc.width, rc.height)
+               repr(self.get_properties()), rc.width, rc.height, views.res,
+               tuple(np.asarray(v["vp"], np.float64).tobytes() for v in views.views))
         if self.tex is not None and key == self._key:
             # nothing the volume depends on changed (an accumulating F12 render, a still
             # viewport): the last frame's volume is this frame's; only the jitter differs
@@ -283,16 +289,17 @@ class LPVPass(Pass):
         res = rc.resources
         res[LPV_R], res[LPV_G], res[LPV_B] = self.tex["acc"]
         res[LPV_GV] = self.gv
+        res[LPV_GVD] = self.gvd
         res[LPV_GRID] = self.grid
 
     def release(self):
         for ts in (self.tex or {}).values():
             for t in ts:
                 t.release()
-        for o in (self.fbo, self.vao, self.gv_fbo, self.gv, self.gv_vao, self.gb_vao):
+        for o in (self.fbo, self.vao, self.gv_fbo, self.gv, self.gvd, self.gv_vao, self.gb_vao):
             if o is not None:
                 o.release()
-        self.tex = self.fbo = self.vao = self.gv = self.gv_fbo = self.gv_vao = self.gb_vao = None
+        self.tex = self.fbo = self.vao = self.gv = self.gvd = self.gv_fbo = self.gv_vao = self.gb_vao = None
         self._key = None
 
 
@@ -310,7 +317,7 @@ class LPVLookupPass(Pass):
 
     name = "lpv_lookup"
     provides = INDIRECT
-    reads = (POSITION, NORMAL, LPV_R, LPV_G, LPV_B, LPV_GV, LPV_GRID)
+    reads = (POSITION, NORMAL, LPV_R, LPV_G, LPV_B, LPV_GV, LPV_GVD, LPV_GRID)
     writes = ("lpv.raw", "lpv.cascade")
     declared = (Res("lpv.raw", check="radiance"), Res("lpv.cascade", dtype="f2", check="radiance"))
     history_resets = frozenset()
@@ -330,6 +337,8 @@ class LPVLookupPass(Pass):
         _bind_volume(rc, prog, 3)
         res[LPV_GV].use(6)
         set_uniform(prog, "u_gv", 6)
+        res[LPV_GVD].use(7)
+        set_uniform(prog, "u_gvd", 7)
         set_uniform(prog, "u_use_gv", 1 if (self.lpv is None or self.lpv["geometry_volume"]) else 0)
         set_uniform(prog, "u_dampening", float(self["dampening"]))
         res["lpv.raw"].bind_to_image(0, read=False, write=True)

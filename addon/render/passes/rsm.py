@@ -29,6 +29,12 @@
   normals and planes agree with the pixel's (at least three), and gathers again at full
   resolution where they do not (the paper's screen-space scheme).
 * ``RSMDebugPass``: the flux atlas stretched over the frame (render pass GI_RSM_Flux).
+* ``indirect_temporal``: the screen-space family's TemporalPass on the gathered signal
+  (reprojected running mean over ``max_history`` frames, 8 by default, moving or not). Its
+  history survives light and transform edits (a moving light is the common case; the
+  8-frame window bounds the lag) and resets on camera cuts, parameter and geometry changes.
+  It removes the frame-to-frame jitter of the VPL sample set (RSM) and of the cell
+  quantisation (LPV) under a moving light or camera (measured on the pages).
 * ``LightGatedGraph``: a FrameGraph whose indirect effects are skipped, with the reason,
   when no light casts shadows (the VPLs come only from shadow-casting lights).
 Shaders: ``shaders/raster3d/``.
@@ -39,11 +45,11 @@ import math
 
 import numpy as np
 
-from ..framegraph import HOST, Effect, FrameGraph, Param, Pass, Res
+from ..framegraph import CAMERA_CUT, HOST, PARAM_CHANGE, Effect, FrameGraph, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from ..scene_data import LightType
 from .gbuffer import GEONORMAL, NORMAL, POSITION
-from .screen_space import Units, bind_frame, bind_gbuffer, scaled
+from .screen_space import TemporalPass, Units, bind_frame, bind_gbuffer, scaled
 from .shadows import CUBE_DIRS, look_at, ortho, perspective
 
 RSM_POS, RSM_NRM, RSM_FLUX, RSM_VIEWS = "rsm.position", "rsm.normal", "rsm.flux", "rsm.views"
@@ -325,6 +331,16 @@ class RSMResolvePass(Pass):
         rc.resources["rsm.raw"].bind_to_image(0, read=False, write=True)
         rc.resources["rsm.regather"].bind_to_image(1, read=False, write=True)
         rc.dispatch(prog, *rc.groups(8))
+
+
+TEMPORAL_RESETS = frozenset({CAMERA_CUT, PARAM_CHANGE, "geometry"})
+
+
+def indirect_temporal(quality, *, name: str, source: str, output: str, frames: int = 8) -> TemporalPass:
+    """Reprojected running mean of an indirect signal over ``frames`` frames (module doc)."""
+    return TemporalPass(quality, name=name, source=source, output=output, background=(0.0, 0.0, 0.0, 1.0),
+                        resets=TEMPORAL_RESETS, provides=INDIRECT, max_history=frames,
+                        max_history_moving=frames)
 
 
 class RSMDebugPass(Pass):

@@ -3,8 +3,8 @@
 Passes: DIRECT's → ``rsm`` (passes/rsm.py: the VPLs) → ``lpv`` (cascades, injection into
 2-band SH per cell, geometry volume, propagation; passes/lpv.py) → ``lpv_lookup``
 (trilinear SH lookup with a normal offset, occlusion-aware weights, dampening) →
-``lpv_composite`` (``color += albedo_d · E/π``) → ``rsm_debug`` (GI_RSM_Flux) and
-``lpv_debug`` (GI_LPV_Slice). One diffuse bounce; compared with Cycles "one_bounce".
+``lpv_temporal`` (reprojected running mean over 8 frames) → ``lpv_composite``
+(``color += albedo_d · E/π``) → ``rsm_debug`` (GI_RSM_Flux) and ``lpv_debug`` (GI_LPV_Slice). One diffuse bounce; compared with Cycles "one_bounce".
 See docs/techniques/LPV.md.
 
 | parameter | range | meaning |
@@ -27,7 +27,7 @@ from __future__ import annotations
 from ..passes.gbuffer import GBufferPass
 from ..passes.light_cull import LightCullPass
 from ..passes.lpv import LPVDebugPass, LPVLookupPass, LPVPass
-from ..passes.rsm import INDIRECT, LightGatedGraph, RSMDebugPass, RSMPass
+from ..passes.rsm import INDIRECT, LightGatedGraph, RSMDebugPass, RSMPass, indirect_temporal
 from ..passes.screen_space import CompositePass
 from ..passes.shadows import ShadowPass
 from . import Technique, register
@@ -49,7 +49,8 @@ class LPV(Technique):
         lpv = LPVPass(quality)
         return [GBufferPass(quality), LightCullPass(quality), ShadowPass(quality), DirectLightPass(quality),
                 RSMPass(quality), lpv, LPVLookupPass(quality, lpv=lpv),
-                CompositePass(quality, name="lpv_composite", mode="SSDO", signal="lpv.raw",
+                indirect_temporal(quality, name="lpv_temporal", source="lpv.raw", output="lpv.temporal"),
+                CompositePass(quality, name="lpv_composite", mode="SSDO", signal="lpv.temporal",
                               ao_output="lpv.vis", provides=INDIRECT),
                 RSMDebugPass(quality), LPVDebugPass(quality)]
 

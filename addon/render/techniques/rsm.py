@@ -4,7 +4,8 @@ Passes: DIRECT's (gbuffer, light_cull, shadows, direct_light) → ``rsm`` (raste
 normal and reflected flux of every shadow-casting light's views, in Cycles' units) →
 ``rsm_gather`` (the paper's disk of VPL samples at low resolution) → ``rsm_resolve``
 (interpolate, or gather again where the four low-resolution samples disagree with the
-pixel) → ``rsm_composite`` (``color += albedo_d · E/π``, the screen-space family's
+pixel) → ``rsm_temporal`` (reprojected running mean over 8 frames: ``max_history``) →
+``rsm_composite`` (``color += albedo_d · E/π``, the screen-space family's
 composite) → ``rsm_debug`` (GI_RSM_Flux). No visibility between VPL and receiver.
 Compared with Cycles "one_bounce". See passes/rsm.py and docs/techniques/RSM.md.
 
@@ -28,7 +29,7 @@ from ..framegraph import Effect
 from ..passes.gbuffer import GBufferPass
 from ..passes.light_cull import LightCullPass
 from ..passes.rsm import (INDIRECT, LightGatedGraph, RSMDebugPass, RSMGatherPass, RSMPass,
-                          RSMResolvePass)
+                          RSMResolvePass, indirect_temporal)
 from ..passes.screen_space import CompositePass
 from ..passes.shadows import ShadowPass
 from . import Technique, register
@@ -54,7 +55,8 @@ class RSM(Technique):
     def passes(self, quality):
         return [GBufferPass(quality), LightCullPass(quality), ShadowPass(quality), DirectLightPass(quality),
                 *rsm_passes(quality),
-                CompositePass(quality, name="rsm_composite", mode="SSDO", signal="rsm.raw",
+                indirect_temporal(quality, name="rsm_temporal", source="rsm.raw", output="rsm.temporal"),
+                CompositePass(quality, name="rsm_composite", mode="SSDO", signal="rsm.temporal",
                               ao_output="rsm.vis", provides=INDIRECT),
                 RSMDebugPass(quality)]
 
