@@ -74,6 +74,8 @@ def main(argv=None):
     p.add_argument("--motion", default="", help="reflection lag under camera motion on these reproduction scenes")
     p.add_argument("--tables", default="", help="print the pages' tables of TECH from <out>/screen_space_results.json")
     p.add_argument("--before", default="", help="with --tables: an earlier results JSON, shown beside")
+    p.add_argument("--seeds", default="", help="run-to-run noise: offsets added to every frame's seed "
+                   "(e.g. 0,1000,2000); relMSE vs one_bounce per offset for --scenes/--techniques/--quality")
     opts = p.parse_args(argv)
     if opts.tables:
         print(tables(opts.tables, os.path.join(opts.out, "screen_space_results.json"), opts.before))
@@ -83,6 +85,8 @@ def main(argv=None):
         return repro(opts)
     if opts.motion:
         return motion(opts)
+    if opts.seeds:
+        return seeds(opts)
     import numpy as np
 
     from gi_preview.blender import demo_scenes, reference
@@ -356,6 +360,57 @@ def motion(opts):
         bpy_scene_remove(sc)
     techniques.REGISTRY.pop(SSRSurfaceMotion.id, None)
     path = os.path.join(REPO, "docs", "results", "screen_space_motion.json")
+    with open(path, "w") as f:
+        json.dump(out, f, indent=1, default=float)
+    log(f"wrote {path}")
+    return out
+
+
+def seeds(opts):
+    """Run-to-run noise of the demo numbers: the same F12 render (``--samples`` frames) with
+    every frame's seed shifted by each offset of ``--seeds`` (the seed the benchmark uses is
+    offset 0), relMSE vs Cycles one_bounce at ``--ref-spp``; prints mean/std per technique
+    and level (an earlier checkout can be measured the same way: ``git archive COMMIT``,
+    then this script from there). Writes ``docs/results/screen_space_seeds.json``."""
+    import numpy as np
+
+    from gi_preview.blender import demo_scenes, reference
+    from gi_preview.blender.export import export_scene
+    from gi_preview.compare import metrics
+    from gi_preview.render import session as S
+
+    reference.ensure_oiio()
+    offsets = [int(x) for x in opts.seeds.split(",") if x]
+    out = {"res": opts.res, "ref_spp": opts.ref_spp, "samples": opts.samples, "offsets": offsets, "scenes": {}}
+    orig = S.FrameState
+    try:
+        for scene_name in [s for s in opts.scenes.split(",") if s]:
+            sc = demo_scenes.build_demo(scene_name, resolution=opts.res)
+            sd = export_scene(reference.evaluated_depsgraph(sc))
+            ref = reference.get_reference(sc, "one_bounce", opts.ref_spp, cache_dir=opts.cache).image
+            entry = out["scenes"].setdefault(scene_name, {})
+            for tech in [t for t in opts.techniques.split(",") if t]:
+                for q in [int(x) for x in opts.quality.split(",") if x]:
+                    vals = []
+                    for off in offsets:
+                        def shifted(off=off, **kw):
+                            kw["sample"] += off
+                            kw["seed"] += off
+                            return orig(**kw)
+
+                        S.FrameState = shifted
+                        S.render(sd, tech, q, 1)
+                        vals.append(metrics.relmse(S.render(sd, tech, q, opts.samples).image, ref))
+                    entry[f"{tech}_q{q}"] = {"relmse": vals, "mean": float(np.mean(vals)),
+                                             "std": float(np.std(vals, ddof=1)) if len(vals) > 1 else 0.0}
+                    log(f"{scene_name} {tech} q{q}: relMSE per seed offset " + ", ".join(f"{v:.5f}" for v in vals)
+                        + f"; mean {np.mean(vals):.5f} std {entry[f'{tech}_q{q}']['std']:.5f}")
+            import bpy
+
+            bpy.data.scenes.remove(sc)
+    finally:
+        S.FrameState = orig
+    path = os.path.join(REPO, "docs", "results", "screen_space_seeds.json")
     with open(path, "w") as f:
         json.dump(out, f, indent=1, default=float)
     log(f"wrote {path}")
