@@ -15,8 +15,9 @@ Measured numbers are printed by each test and quoted on docs/techniques/RSM.md a
   room's mean over the lit room's (Cycles: 0). RSM has no visibility and leaks; LPV's
   geometry volume must cut its own leak to a quarter or less of what it is without it.
 * Moving light and camera: finite, non-negative; the frame-to-frame change is printed
-  against Cycles' own and bounded at 1.3x (mean) / 1.75x (max) — issue 10's 1.0x is not
-  met (RSM 1.15x / 1.28x measured here), see the pages.
+  against Cycles' own and bounded at 1.3x (mean) / 1.75x (max) over 6 large moves (the
+  60-frame bench measures issue 10's 1.0x, see the pages); RSM without its temporal pass
+  must change more per frame than with it.
 * Planning: with no shadow-casting light, or open sky only, the passes are skipped with
   the reason.
 * LPV's cascades are snapped to their cells (a sub-cell camera move shifts no grid) and
@@ -163,31 +164,44 @@ def test_thin_wall_leak_and_geometry_volume():
 
 
 def test_moving_light_and_camera_no_flicker():
+    """Finite, non-negative; frame-to-frame change against Cycles' own, and the temporal
+    pass's effect: RSM without ``rsm_temporal`` (max_history 1) changes more per frame (the
+    VPL pattern's error moving with the light; 60-frame bench 1.23x Cycles' without it,
+    0.96x with it)."""
     sc = demo_scenes.build_demo("cornell", resolution=32)
+    runs = {"RSM": ("RSM", None), "LPV": ("LPV", None),
+            "RSM without temporal": ("RSM", {"rsm_temporal": {"max_history": 1, "max_history_moving": 1}})}
     try:
-        cyc, ours = [], {t: [] for t in TECHS}
+        cyc, ours = [], {k: [] for k in runs}
         for k in range(6):
             scenes_raster3d.move_light_and_camera(sc, k)
             sd = _export(sc)
             cyc.append(reference.render_cycles(sc, 64, "one_bounce")[0][..., :3])
-            for tech in TECHS:
-                img = session.render(sd, tech, 1, 1, keep_history=True, session=f"raster3d_motion_{tech}").image[..., :3]
-                assert np.isfinite(img).all(), f"{tech} frame {k}: non-finite"
-                assert img.min() >= 0.0, f"{tech} frame {k}: negative {img.min()}"
-                ours[tech].append(img)
+            for i, (label, (tech, props)) in enumerate(runs.items()):
+                sess = f"raster3d_motion_{i}"
+                if k == 0 and props:
+                    session.render(sd, tech, 1, 1, keep_history=True, session=sess)
+                    get_gl().call(lambda: [g.set_properties(props) for _t, g in session._sessions[sess].graphs.values()])
+                img = session.render(sd, tech, 1, 1, keep_history=True, session=sess).image[..., :3]
+                assert np.isfinite(img).all(), f"{label} frame {k}: non-finite"
+                assert img.min() >= 0.0, f"{label} frame {k}: negative {img.min()}"
+                ours[label].append(img)
         d_cyc = [float(np.abs(a - b).mean()) for a, b in zip(cyc, cyc[1:])]
-        for tech in TECHS:
-            d = [float(np.abs(a - b).mean()) for a, b in zip(ours[tech], ours[tech][1:])]
-            print(f"{tech} frame-to-frame mean |diff|: ours {np.round(d, 4)} Cycles {np.round(d_cyc, 4)}; "
+        means = {}
+        for label in runs:
+            d = [float(np.abs(a - b).mean()) for a, b in zip(ours[label], ours[label][1:])]
+            means[label] = np.mean(d)
+            print(f"{label} frame-to-frame mean |diff|: ours {np.round(d, 4)} Cycles {np.round(d_cyc, 4)}; "
                   f"mean {np.mean(d) / np.mean(d_cyc):.2f}x, max {max(d) / max(d_cyc):.2f}x Cycles'")
-            # Issue 10 asks for no flicker beyond Cycles' (1.0x): not met (measured RSM 1.15x mean,
-            # 1.28x max here; the 60-frame bench: RSM/LPV on the pages). A regression guard: the
-            # old per-frame VPL pattern measured 5.3x (q0) and 2.2x (q1) in the 60-frame bench.
-            assert np.mean(d) <= 1.3 * np.mean(d_cyc), tech
-            assert max(d) <= 1.75 * max(d_cyc), tech
+            # Six large moves (the 60-frame bench measures the 1.0x of issue 10: RSM q1 0.96x,
+            # LPV q1 1.01x, see the pages); a regression guard against the old per-frame VPL
+            # pattern (5.3x q0, 2.2x q1 in the 60-frame bench).
+            assert np.mean(d) <= 1.3 * np.mean(d_cyc), label
+            assert max(d) <= 1.75 * max(d_cyc), label
+        assert means["RSM"] < 0.97 * means["RSM without temporal"], means
     finally:
-        for tech in TECHS:
-            session.release_session(f"raster3d_motion_{tech}")
+        for i in range(len(runs)):
+            session.release_session(f"raster3d_motion_{i}")
         bpy.data.scenes.remove(sc)
 
 
