@@ -86,14 +86,40 @@ def test_svgf_still_quarter_of_pt(scene_name):
               f"SVGF after 16 frames {sv:.4f} = {sv / pt_rel:.3f}x")
         assert np.isfinite(imgs[-1]).all()
         assert sv <= 0.25 * pt_rel, f"SVGF relMSE {sv:.4f} > 1/4 of 1-spp PT's {pt_rel:.4f}"
-        # the brightness of the 16 samples it averaged: edge-stopping weights are not
-        # energy-conserving; measured SVGF/PT16 0.97 (cornell) and 0.82 (sun-lit room, the
-        # heavy-tailed light through the window; 0.88 with feedback=0): a known loss, bounded here
+        # the brightness of the 16 samples it averaged. With the paper's feedback (the first
+        # à-trous iteration as history) SVGF/PT16 was 0.82 on the sun-lit room: the centre-sigma
+        # luminance weights average a bright sample down while its neighbours ignore it, and the
+        # feedback kept that loss; the history is now the temporal integration (feedback = 0).
+        # Measured here (16 frames from an empty history, 40 px): 0.98 cornell, 0.87 sun-lit room
+        # (was 0.82): what remains is the à-trous of a young history (large variance, wide
+        # luminance weights), 0.965 once the history is long (bench_filters.py, held frames)
         pt16 = float(np.mean(pt_frames))
         print(f"  mean: SVGF {imgs[-1].mean():.4f}, 16 PT frames {pt16:.4f}, Cycles {ref.mean():.4f}")
-        assert abs(imgs[-1].mean() / pt16 - 1.0) < 0.25
+        assert abs(imgs[-1].mean() / pt16 - 1.0) < 0.15
     finally:
         release("f_pt"), release("f_svgf")
+        bpy.data.scenes.remove(sc)
+
+
+def test_emission_bypasses_demodulation():
+    """Emission is not albedo x illumination: the filters take it out before dividing by the
+    albedo and add it back after. Demodulated, the emissive panel (radiance 8, dark base
+    colour) became 8 / albedo, spread over its neighbours and multiplied back by theirs: max
+    pixel 175 with SVGF at 48 px where the unfiltered image's is 8."""
+    sc, sd = build("emissive_panel", 32)
+    try:
+        emax = max(float(np.max(m.emission)) for m in sd.materials)
+        pt = frames(sd, "PT", 4, "f_pt")[-1]
+        out = {t: frames(sd, "PT", 4, "f_" + t, denoiser=t)[-1] for t in ("SVGF", "ATROUS")}
+        print(f"emissive_panel 32 px: max PT {pt.max():.2f}, SVGF {out['SVGF'].max():.2f}, ATROUS "
+              f"{out['ATROUS'].max():.2f} (emission max {emax:.2f})")
+        for t, img in out.items():
+            assert np.isfinite(img).all()
+            assert img.max() <= 1.2 * max(pt.max(), emax), f"{t}: max {img.max():.2f} vs unfiltered {pt.max():.2f}"
+            assert abs(img.mean() / pt.mean() - 1.0) < 0.2, f"{t}: mean {img.mean():.4f} vs {pt.mean():.4f}"
+    finally:
+        for s_ in ("f_pt", "f_SVGF", "f_ATROUS"):
+            release(s_)
         bpy.data.scenes.remove(sc)
 
 
@@ -206,8 +232,8 @@ def test_denoiser_options_end_any_graph():
         assert "atrous" in r.pass_order and r.pass_order.count("gbuffer") == 1
         with pytest.raises(ValueError, match="unknown GI Preview denoiser 'BLUR'"):
             session.render(sd, "PT", 0, 1, denoiser="BLUR", session="opt")
-        # the scene properties exist and default to off
-        assert sc.gi_preview.denoiser == "NONE" and sc.gi_preview.use_taa is False
+        # the scene properties exist and default to off ("AUTO": the technique's default, NONE for PT)
+        assert sc.gi_preview.denoiser == "AUTO" and sc.gi_preview.use_taa is False
     finally:
         release("opt")
         bpy.data.scenes.remove(sc)

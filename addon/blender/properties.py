@@ -36,8 +36,10 @@ class GIPreviewSceneSettings(bpy.types.PropertyGroup):
         name="Quality", default=1, min=0, max=3, update=_update,
         description="Level of the technique's quality ladder (0 = fastest, 3 = most accurate)")
     denoiser: bpy.props.EnumProperty(
-        name="Denoiser", default="NONE", update=_update,
-        items=[("NONE", "None", "No filter"),
+        name="Denoiser", default="AUTO", update=_update,
+        items=[("AUTO", "Technique Default", "The technique's own filter: SVGF for ReSTIR GI (meant to be shown "
+                "filtered), none for every other technique (PT stays the unfiltered reference)"),
+               ("NONE", "None", "No filter"),
                ("ATROUS", "À-Trous", "Edge-avoiding à-trous wavelet filter (Dammertz 2010)"),
                ("SVGF", "SVGF", "Spatiotemporal variance-guided filtering (Schied 2017)")],
         description="Filter that ends the technique's frame graph (for noisy techniques)")

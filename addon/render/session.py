@@ -143,6 +143,7 @@ class Session:
         t_start = time.perf_counter()
         setup0 = self._setup_clock()
         analysis = analyse(scene)
+        denoiser = techniques.resolve_denoiser(technique, denoiser)  # "AUTO": the technique's default
         tech, graph = self._graph(technique, quality, denoiser, use_taa)
         changes = self.gpu_scene.update(scene)
         size = (scene.width, scene.height)

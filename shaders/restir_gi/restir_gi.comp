@@ -262,14 +262,31 @@ void main() {
         }
         // ---- temporal reuse
         if (u_temporal == 1 && u_reset == 0) {
+            // the previous pixel: the one holding the reprojected point, else the nearest other
+            // pixel of its 2x2 bilinear footprint on the same surface (plane and normal tests).
+            // Only the nearest one, an edge pixel under motion lands on the neighbouring face
+            // every frame and restarts from one sample (flicker along every depth edge).
             vec2 prev = vec2(px) + 0.5 - texelFetch(u_gb_motion, px, 0).xy;
-            ivec2 q = ivec2(floor(prev));
-            if (all(greaterThanEqual(q, ivec2(0))) && all(lessThan(q, size))) {
-                vec4 vp = texelFetch(u_in_vpos, q, 0);
-                vec4 vn = texelFetch(u_in_vnrm, q, 0);
-                bool ok = finite4(vp) && finite4(vn) && vp.w >= 0.0 && dot(vn.xyz, vn.xyz) > 0.25
-                          && abs(dot(sh.N, vp.xyz - sh.P)) < 0.02 * (1.0 + length(sh.P - u_camera_pos))
-                          && dot(normalize(vn.xyz), sh.N) > 0.9;
+            ivec2 q0 = ivec2(floor(prev));
+            vec2 fr = prev - vec2(q0) - 0.5;  // offset from that pixel's centre, (-0.5, 0.5]
+            ivec2 sx = ivec2(fr.x >= 0.0 ? 1 : -1, 0), sy = ivec2(0, fr.y >= 0.0 ? 1 : -1);
+            ivec2 cand[4] = ivec2[4](q0, abs(fr.x) >= abs(fr.y) ? q0 + sx : q0 + sy,
+                                     abs(fr.x) >= abs(fr.y) ? q0 + sy : q0 + sx, q0 + sx + sy);
+            float plane_tol = 0.02 * (1.0 + length(sh.P - u_camera_pos));
+            ivec2 q = ivec2(-1);
+            vec4 vp = vec4(0.0, 0.0, 0.0, -1.0), vn = vec4(0.0);
+            for (int c = 0; c < 4; ++c) {
+                ivec2 qc = cand[c];
+                if (any(lessThan(qc, ivec2(0))) || any(greaterThanEqual(qc, size))) continue;
+                vec4 a = texelFetch(u_in_vpos, qc, 0), b = texelFetch(u_in_vnrm, qc, 0);
+                if (finite4(a) && finite4(b) && a.w >= 0.0 && dot(b.xyz, b.xyz) > 0.25
+                    && abs(dot(sh.N, a.xyz - sh.P)) < plane_tol && dot(normalize(b.xyz), sh.N) > 0.9) {
+                    q = qc; vp = a; vn = b;
+                    break;
+                }
+            }
+            {
+                bool ok = q.x >= 0;
                 if (ok) {
                     Reservoir pr = fetch_reservoir(q);
                     float Mp = min(pr.M, u_m_cap);

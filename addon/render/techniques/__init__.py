@@ -44,6 +44,10 @@ class Technique:
     # ``converged()``, and the larger count wins
     warmup_frames = 0
     cost_rank = 100  # relative cost for AUTO's choice (lower = cheaper)
+    # the filter used when scene.gi_preview.denoiser is "AUTO" (Technique Default): "NONE" for
+    # all but techniques that are only meant to be shown filtered (RESTIR_GI: "SVGF"); PT and
+    # the filter ids keep "NONE", so PT stays the unfiltered reference
+    default_denoiser = "NONE"
     # AOV name -> resource name (accumulated and returned; "Combined" comes from "color")
     outputs: dict = {}
 
@@ -101,6 +105,13 @@ def _load():
 def available() -> list[TechniqueInfo]:
     _load()
     return [cls.info() for cls in REGISTRY.values()]
+
+
+def resolve_denoiser(technique_id: str, denoiser: str | None) -> str:
+    """The filter a render uses: ``denoiser`` itself, or for ``"AUTO"`` (the Technique Default
+    item of scene.gi_preview.denoiser) the technique's ``default_denoiser``."""
+    d = (denoiser or "NONE").upper()
+    return (getattr(get(technique_id), "default_denoiser", "NONE") or "NONE").upper() if d == "AUTO" else d
 
 
 def get(technique_id: str) -> type:

@@ -8,7 +8,9 @@ next-event estimation there plus a short path continuation), temporal reuse (M c
 spatial reuse with depth/normal tests and the reconnection Jacobian, validation rays, bias
 correction 1/M or MIS; ``color += f L_o W``. Effects: indirect diffuse and glossy. The
 filters of ``scene.gi_preview.denoiser`` (ATROUS, SVGF) and ``use_taa`` follow it as they
-follow PT. Compared with Cycles "full". Docs: docs/techniques/RESTIR_GI.md.
+follow PT; with the denoiser's default "AUTO" (Technique Default) RESTIR_GI ends in SVGF
+(``default_denoiser``), "NONE" shows it unfiltered. Compared with Cycles "full".
+Docs: docs/techniques/RESTIR_GI.md.
 
 | parameter (pass ``restir_gi``) | range | meaning |
 |---|---|---|
@@ -46,6 +48,10 @@ class RESTIR_GI(Technique):
     reference = "full"
     cost_rank = 400
     warmup_frames = 8
+    # one resampled path sample per pixel flickers 5-10x more than Cycles 256 spp + OIDN frame to
+    # frame (docs/techniques/RESTIR_GI.md); like production ReSTIR GI it is meant to end in a
+    # denoiser: scene.gi_preview.denoiser "AUTO" (the default) picks SVGF, "NONE" shows it raw
+    default_denoiser = "SVGF"
     outputs = {**DIRECT_OUTPUTS, "GI_IndirectDiffuse": AOV_DIFFUSE, "GI_IndirectGlossy": AOV_GLOSSY,
                "GI_ReservoirW": VIEW_W, "GI_ReservoirM": VIEW_M}
 
