@@ -87,6 +87,8 @@ uniform int u_reset;
 uniform int u_light_cands;
 uniform int u_bsdf_cands;
 uniform int u_bsdf_analytic;  // 1: BSDF candidates see area, sphere and sun-disk lights
+uniform int u_bsdf_glossy;    // BSDF candidates on glossy pixels (they always see those lights)
+uniform float u_glossy_rough; // a pixel is glossy below this roughness with a mostly specular lobe
 uniform int u_temporal;
 uniform int u_spatial;
 uniform int u_shade_all;
@@ -277,10 +279,20 @@ bool is_delta(Sample x) {
 // sphere and sun-disk lights only when u_bsdf_analytic (the host turns it off above
 // bsdf_light_max such lights: each BSDF ray would test them all); delta lights never. A
 // strategy that cannot produce a sample has pdf 0 for it, so the MIS'd weights stay unbiased.
-bool bsdf_finds(Sample x) {
+bool bsdf_finds(Sample x, bool analytic) {
     if (x.li < 0) return true;
     int type = int(lights[x.li].pos_type.w + 0.5);
-    return type == LIGHT_MESH || (u_bsdf_analytic == 1 && !is_delta(x));
+    return type == LIGHT_MESH || (analytic && !is_delta(x));
+}
+
+// Glossy pixels (roughness < u_glossy_rough, specular lobe >= half the sampling weight) get
+// u_bsdf_glossy BSDF candidates that test every area/sphere/sun-disk light: a small light's
+// highlight on a glossy surface is a narrow peak that light sampling by power finds in a few
+// percent of frames (a heavy tail: on many_lights' metal sphere it held most of the error of
+// 16 accumulated frames); BSDF sampling finds it. Per-pixel strategy counts keep the MIS'd
+// candidate weights consistent (both strategies' pdfs use the same counts and flags).
+bool is_glossy(Shading sh) {
+    return sh.s.roughness < u_glossy_rough && lobe_weights(sh.s, max(dot(sh.N, sh.V), 1e-4)).y >= 0.5;
 }
 
 // One light sample by power as a Sample; pl = its solid-angle pdf (delta: selection prob.)
@@ -322,7 +334,7 @@ bool light_candidate(Shading sh, vec4 u, out Sample x, out float pl) {
 // One BSDF sample as a Sample: the nearest area/sphere light the ray crosses before the first
 // surface, else the emissive triangle it hits (its mesh light), else on a miss a sun disk or
 // the world. pb = BSDF pdf (solid angle), pl = the light strategy's pdf of the same sample.
-bool bsdf_candidate(Shading sh, vec3 u, out Sample x, out float pb, out float pl) {
+bool bsdf_candidate(Shading sh, vec3 u, bool analytic, out Sample x, out float pb, out float pl) {
     x.li = -1; x.y = vec3(0.0); x.n = vec3(0.0, 0.0, 1.0); x.Le = vec3(0.0); pl = 0.0;
     vec3 d = sample_principled(sh.s, sh.N, sh.V, u, pb);
     if (pb <= 0.0 || dot(d, sh.Ng) <= 0.0) return false;
@@ -330,7 +342,7 @@ bool bsdf_candidate(Shading sh, vec3 u, out Sample x, out float pb, out float pl
     bool hit = scene_trace(sh.p, d, 0.0, T_INF, hs);
     float tbest = hit ? hs.t : T_INF;
     int best = -1;
-    for (int i = 0; i < u_light_count && u_bsdf_analytic == 1; ++i) {
+    for (int i = 0; i < u_light_count && analytic; ++i) {
         Light L = lights[i];
         int type = int(L.pos_type.w + 0.5);
         float t = -1.0;
@@ -366,7 +378,7 @@ bool bsdf_candidate(Shading sh, vec3 u, out Sample x, out float pb, out float pl
         pl = light_pdf(li) * tri_prob * area_to_solid_angle_pdf(sh.p, hs.position, hs.geo_normal, area);
         return true;
     }
-    for (int i = 0; i < u_light_count && u_bsdf_analytic == 1; ++i) {  // a miss: sun disks, then the world
+    for (int i = 0; i < u_light_count && analytic; ++i) {  // a miss: sun disks, then the world
         Light L = lights[i];
         if (int(L.pos_type.w + 0.5) != LIGHT_SUN || L.dir_radius.w <= 1e-6) continue;
         if (dot(d, -L.dir_radius.xyz) >= cos(L.dir_radius.w)) {
@@ -384,7 +396,10 @@ bool bsdf_candidate(Shading sh, vec3 u, out Sample x, out float pb, out float pl
 // RIS over the candidates with MIS'd candidate pdfs (balance heuristic over the strategies)
 Reservoir candidates(Shading sh, inout Rng rng) {
     Reservoir r = empty_reservoir();
-    float ML = float(u_light_count > 0 ? u_light_cands : 0), MB = float(u_bsdf_cands);
+    bool glossy = u_bsdf_glossy > 0 && is_glossy(sh);
+    bool analytic = u_bsdf_analytic == 1 || glossy;
+    float ML = float(u_light_count > 0 ? u_light_cands : 0);
+    float MB = float(glossy ? max(u_bsdf_cands, u_bsdf_glossy) : u_bsdf_cands);
     for (int k = 0; k < int(ML); ++k) {
         vec4 u = rng_next4(rng);
         float xi = rng_next4(rng).x;
@@ -398,7 +413,7 @@ Reservoir candidates(Shading sh, inout Rng rng) {
                     w = tgt(c) / (ML * pl);  // discrete measure; BSDF rays never find it
                 } else {
                     // p^ / (M_L p_L + M_B p_B) in y's measure; both pdfs are solid-angle, times G
-                    float pb = (MB > 0.0 && bsdf_finds(x)) ? pdf_principled(sh.s, sh.N, sh.V, d) : 0.0;
+                    float pb = (MB > 0.0 && bsdf_finds(x, analytic)) ? pdf_principled(sh.s, sh.N, sh.V, d) : 0.0;
                     w = tgt(c) / (G * (ML * pl + MB * pb));
                 }
             }
@@ -409,7 +424,7 @@ Reservoir candidates(Shading sh, inout Rng rng) {
         vec4 u = rng_next4(rng);
         Sample x; float pb, pl;
         float w = 0.0;
-        if (bsdf_candidate(sh, u.xyz, x, pb, pl)) {
+        if (bsdf_candidate(sh, u.xyz, analytic, x, pb, pl)) {
             vec3 d; float t, G; bool cs;
             vec3 c = contrib_g(sh, x, d, t, cs, G);
             if (max3(c) > 0.0) w = tgt(c) / (G * (ML * pl + MB * pb));

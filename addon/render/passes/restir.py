@@ -44,11 +44,14 @@ class RestirDIPass(Pass):
     params = (
         Param("candidates", 32, 0, 256, "RIS light candidates (by power) per pixel per frame"),
         Param("bsdf_candidates", 1, 0, 8, "RIS BSDF candidates per pixel per frame (world light, large lights)"),
+        Param("bsdf_glossy", 8, 0, 32, "BSDF candidates on glossy pixels (they also test every area/sphere/sun "
+              "light there): small lights' highlights, which light sampling by power rarely finds"),
+        Param("glossy_roughness", 0.3, 0.0, 1.0, "glossy pixels: roughness below this, mostly specular"),
         Param("temporal", 2, 0, 2, "temporal reuse: 0 off, 1 on, 2 = on except for frames 2.. of a still "
               "accumulation (F12, still viewport), whose mean converges faster from independent frames"),
         Param("spatial", 8, 0, 16, "spatial neighbours"),
         Param("radius", 0.03, 0.0, 0.25, "spatial radius, a fraction of the image's larger side (30 px at 1080p)"),
-        Param("radius_min", 3.0, 1.0, 64.0, "smallest spatial radius (pixels)"),
+        Param("radius_min", 2.0, 1.0, 64.0, "smallest spatial radius (pixels)"),
         Param("shade_all", 1, 0, 1, "shade every spatial input by its MIS weight (1 shadow ray each) instead of only the kept one"),
         Param("m_cap", 20.0, 1.0, 100.0, "temporal M cap, in multiples of this frame's candidates"),
         Param("bias_mode", 2, 0, 2, "bias correction: 0 = 1/M, 1 = MIS-normalised, 2 = ray-traced visibility"),
@@ -93,6 +96,8 @@ class RestirDIPass(Pass):
             for k in ("bsdf_cands", "spatial", "shade_all", "bias_mode", "baseline_spp", "baseline_bsdf"):
                 set_uniform(prog, "u_" + k, int(self["bsdf_candidates" if k == "bsdf_cands" else k]))
             set_uniform(prog, "u_bsdf_analytic", analytic)
+            set_uniform(prog, "u_bsdf_glossy", int(self["bsdf_glossy"]))
+            set_uniform(prog, "u_glossy_rough", float(self["glossy_roughness"]))
             set_uniform(prog, "u_radius", float(self["radius"]))
             set_uniform(prog, "u_radius_min", float(self["radius_min"]))
             set_uniform(prog, "u_m_cap", float(self["m_cap"]))
