@@ -22,11 +22,11 @@ docs/techniques/VXGI.md.
 | specular, min_aperture | vxgi_trace | | the specular cone and its narrowest aperture |
 | mip | vxgi_debug | 0–8 | mip level shown by GI_VXGI_Voxels |
 
-**Experimental, not registered unless GI_PREVIEW_EXPERIMENTAL=1** (as LPV): light leaks
-through zero-thickness walls and roofs (the sun-lit room's mean is 2.7x Cycles', the
-two-room scene's dark room is lit), so it stays out of the technique menu, AUTO and the
-hard-case tests until that is fixed; the Cornell box meets the issue's numbers
-(docs/techniques/VXGI.md).
+**Experimental, not registered unless GI_PREVIEW_EXPERIMENTAL=1** (as LPV): the sun-lit
+room's mean is 2.2x Cycles' (sun light reaches corner voxels whose one averaged normal and
+point lie off both walls), the Cornell box's mean is 0.83 (not within the issue's ±15 %),
+and the thin-wall mitigations do not reduce the two-room leak, so it stays out of the
+technique menu, AUTO and the hard-case tests until that is fixed (docs/techniques/VXGI.md).
 
 Quality ladder (voxels per side of each of 2 cascades; F12 warm-up frames): 0 = 32³ (4);
 1 = 48³ (6); 2 = 64³ (8); 3 = 96³ (8).
