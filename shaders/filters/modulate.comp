@@ -1,6 +1,8 @@
 // modulate.comp — end of ATROUS/SVGF: colour = filtered illumination x demodulation albedo
-// (background pixels carry the colour itself). Optionally the input of the filter is
-// demodulated here instead (MODE_DEMOD): u_in = colour -> o_out = illumination, a = 0.
+// + the surface's emission (background pixels carry the colour itself). With u_demod = 1 the
+// input of the filter is demodulated here instead: u_in = colour -> o_out = (colour -
+// emission) / albedo, a = 0. Emission bypasses the filter (filters/common.glsl gb_emission).
+#define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/screen.glsl"
 #include "filters/common.glsl"
@@ -18,9 +20,11 @@ void main() {
     if (any(greaterThanEqual(px, size))) return;
     vec4 s = texelFetch(u_in, px, 0);
     vec3 c = sanitize(s.rgb);
-    if (texelFetch(u_gb_position, px, 0).w >= 0.0) {
+    vec4 pos = texelFetch(u_gb_position, px, 0);
+    if (pos.w >= 0.0) {
         vec3 a = demod_albedo(texelFetch(u_gb_albedo, px, 0).rgb);
-        c = u_demod == 1 ? c / a : c * a;
+        vec3 e = gb_emission(pos);
+        c = u_demod == 1 ? max(c - e, vec3(0.0)) / a : c * a + e;
     }
     imageStore(o_out, px, vec4(c, u_demod == 1 ? 0.0 : 1.0));
 }

@@ -1,5 +1,6 @@
 // svgf_temporal.comp — SVGF's temporal stage (Schied et al. 2017, §4.1–4.2).
-// Demodulates the noisy colour by the G-buffer albedo, reprojects last frame's filtered
+// Demodulates the noisy colour (minus the surface's emission) by the G-buffer albedo,
+// reprojects last frame's filtered
 // illumination (the first à-trous iteration, fed back) and moments through gbuffer.motion
 // (bilinear 2x2, each tap kept only if its surface lies on this pixel's plane, has a similar
 // normal and projects near this pixel), integrates with an exponential moving average
@@ -7,6 +8,7 @@
 // temporal moments, or spatially (7x7, edge-stopped) while the history is shorter than 4;
 // the variance handed to the à-trous is that of the integrated signal (samples' / len).
 // History taps that are not finite are rejected, so NaN in history is gone within a frame.
+#define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/screen.glsl"
 #include "filters/common.glsl"
@@ -34,7 +36,8 @@ uniform float u_clamp_sigma;   // 0 = no history clamp (the paper)
 
 vec3 cur_illum(ivec2 q) {
     vec3 c = sanitize(texelFetch(u_color, q, 0).rgb);
-    return c / demod_albedo(texelFetch(u_gb_albedo, q, 0).rgb);
+    vec3 e = gb_emission(texelFetch(u_gb_position, q, 0));  // emission bypasses demodulation
+    return max(c - e, vec3(0.0)) / demod_albedo(texelFetch(u_gb_albedo, q, 0).rgb);
 }
 
 void main() {

@@ -17,6 +17,13 @@
 //   samples would otherwise cut the rare bright samples every frame and darken the result.
 //   No min/max box and no tone-mapped blend for the same reason (both are biased on noisy
 //   input); the blend is linear, so the running mean is the samples' mean.
+// * Reconstruction filter of the current frame (Karis' filtered current sample; here a 3x3
+//   binomial over the neighbours on the same surface, 5x5 while the history is young,
+//   u_input_filter = 1): a 1-spp path-traced
+//   sample blended alone at weight alpha lets its full noise through every frame (flicker
+//   2-4x Cycles' frame-to-frame change on the sun-lit room); the binomial divides its standard
+//   deviation by up to 2.7 and is linear and normalised, so it keeps the energy. The clip box
+//   and the temporal moments still use the raw samples (they describe the sample spread).
 // Off-screen, geometrically different or non-finite history is dropped.
 #include "lib/common.glsl"
 #include "lib/screen.glsl"
@@ -39,6 +46,41 @@ uniform int u_reset;
 uniform float u_alpha;
 uniform float u_gamma;
 uniform float u_max_history;
+uniform int u_input_filter;  // 1: blend the same-surface binomial of this frame's samples
+uniform float u_young;       // history length up to which the input filter is 5x5 (3x3 beyond)
+
+// Reconstruction filter of this frame's samples: a (2r+1)^2 binomial over the neighbours on
+// the same surface (tangent plane within 2 pixel footprints, normal within ~25 degrees; for a
+// background pixel: the background neighbours). Linear and normalised: keeps the energy.
+const float BINOM1[3] = float[3](1.0, 2.0, 1.0);
+const float BINOM2[5] = float[5](1.0, 4.0, 6.0, 4.0, 1.0);
+// Also returns the clip box of the same window (mean and sigma of the raw samples in YCoCg):
+// the box must see every sample the filtered input spreads into this pixel, or the energy of
+// a rare bright sample spread over its neighbours is clipped away there (sun-lit room: 20 %).
+vec3 rgb2ycocg(vec3 c);
+vec3 filtered_input(ivec2 px, ivec2 size, bool surf, vec3 P, vec3 N, int r, out vec3 bmean, out vec3 bsig) {
+    vec3 sum = vec3(0.0), b1 = vec3(0.0), b2 = vec3(0.0);
+    float ws = 0.0, nb = 0.0;
+    for (int dy = -r; dy <= r; ++dy)
+        for (int dx = -r; dx <= r; ++dx) {
+            ivec2 q = px + ivec2(dx, dy);
+            if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
+            vec3 yq = rgb2ycocg(sanitize(texelFetch(u_color, q, 0).rgb));
+            b1 += yq;
+            b2 += yq * yq;
+            nb += 1.0;
+            vec4 pq = texelFetch(u_gb_position, q, 0);
+            bool ok = surf ? (pq.w >= 0.0 && plane_pixels(P, N, pq.xyz) <= 2.0
+                              && dot(N, texelFetch(u_gb_normal, q, 0).xyz) > 0.9) : pq.w < 0.0;
+            if (!ok) continue;
+            float g = r == 1 ? BINOM1[dx + 1] * BINOM1[dy + 1] : BINOM2[dx + 2] * BINOM2[dy + 2];
+            sum += g * sanitize(texelFetch(u_color, q, 0).rgb);
+            ws += g;
+        }
+    bmean = b1 / max(nb, 1.0);
+    bsig = sqrt(max(b2 / max(nb, 1.0) - bmean * bmean, vec3(0.0)));
+    return ws > 0.0 ? sum / ws : sanitize(texelFetch(u_color, px, 0).rgb);
+}
 
 vec3 rgb2ycocg(vec3 c) {
     return vec3(0.25 * c.r + 0.5 * c.g + 0.25 * c.b, 0.5 * c.r - 0.5 * c.b, -0.25 * c.r + 0.5 * c.g - 0.25 * c.b);
@@ -110,18 +152,25 @@ void main() {
         hc /= wsum;
         hlen /= wsum;
         hm2 /= wsum;
+        len = min(hlen + 1.0, max(u_max_history, 1.0));
+        // young history (running mean, weight 1/len per frame): the wider 5x5 filter, so a
+        // disoccluded pixel's early frames do not leave their noise in it for the next ~10 frames
+        vec3 bm = m1, bs = sig;
+        vec3 curf = cur;
+        if (u_input_filter == 1) curf = filtered_input(px, size, surf, P, N, len <= u_young ? 2 : 1, bm, bs);
         vec3 hy = rgb2ycocg(hc);
         float sig_t = sqrt(max(hm2 - hy.x * hy.x, 0.0));
-        vec3 e = u_gamma * max(sig, vec3(sig_t));
-        vec3 cy = clip_box(m1, e, hy);
+        vec3 e = u_gamma * max(bs, vec3(sig_t));
+        vec3 cy = clip_box(bm, e, hy);
         clipped = length(cy - hy) / (length(hy) + 1e-4);
-        len = min(hlen + 1.0, max(u_max_history, 1.0));
         float a = max(u_alpha, 1.0 / len);
-        outc = mix(max(ycocg2rgb(cy), vec3(0.0)), cur, a);
+        outc = mix(max(ycocg2rgb(cy), vec3(0.0)), curf, a);
         om2 = mix(hm2, ycur * ycur, a);
     } else {
-        // no usable history (disocclusion, off-screen, reset): the same-surface 3x3 mean
-        outc = ns > 0.0 ? same / ns : cur;
+        // no usable history (disocclusion, off-screen, reset): the same-surface 5x5 binomial
+        // (3x3 mean without the input filter)
+        vec3 bm, bs;
+        outc = u_input_filter == 1 ? filtered_input(px, size, surf, P, N, 2, bm, bs) : (ns > 0.0 ? same / ns : cur);
         len = ns >= 4.0 ? 2.0 : 1.0;
         om2 = ycur * ycur;
         clipped = 1.0;

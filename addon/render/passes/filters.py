@@ -8,10 +8,15 @@
 * ``SVGFPass`` (Schied et al. 2017, "Spatiotemporal variance-guided filtering"): demodulated
   illumination reprojected through ``gbuffer.motion`` with a history length, temporal
   luminance moments (spatial estimate while the history is shorter than 4 frames),
-  variance-guided à-trous whose first iteration is fed back as next frame's history, and
-  remodulation.
+  variance-guided à-trous, and remodulation. The history is the temporal integration by
+  default (``feedback = 0``); ``feedback = 1`` feeds the first à-trous iteration back as the
+  paper does (it loses light on heavy-tailed input: sun-lit room 0.86 of Cycles vs 0.965).
+* Emission (the G-buffer surface's material emission) bypasses demodulation in ATROUS and
+  SVGF: illumination = (colour - emission) / albedo, colour = filtered x albedo + emission.
 * ``TAAPass`` (Karis 2014): reprojected history (rejected by geometry), per-pixel history
-  length, YCoCg variance clip widened by the temporal sigma, linear exponential blend.
+  length, YCoCg variance clip widened by the temporal sigma, linear exponential blend of a
+  reconstruction-filtered current frame (same-surface binomial, 5x5 while the history is
+  young, else 3x3; the clip box spans the same window).
   The camera jitter is the session's R2 sequence (frame 0 at the pixel centre), which the
   G-buffer and every pass already use; TAA does not add its own (Halton) jitter: two jitter
   sequences would disagree, and R2 is the better-distributed 2D sequence.
@@ -90,6 +95,7 @@ class _FilterPass(Pass):
     def _modulate(self, rc, src, dst, demod: bool):
         res = rc.resources
         prog = rc.programs.compute("filters/modulate.comp")
+        rc.scene.bind(prog)  # materials: the emission that bypasses demodulation
         units = Units(1)
         units.tex(prog, "u_in", res[src])
         units.tex(prog, "u_gb_albedo", res[ALBEDO])
@@ -146,7 +152,8 @@ class SVGFPass(_FilterPass):
         Param("sigma_luminance", 4.0, 0.1, 100.0, "luminance edge-stopping (times the standard deviation)"),
         Param("sigma_normal", 128.0, 1.0, 1024.0, "normal exponent"),
         Param("sigma_depth", 1.0, 1e-3, 100.0, "tangent-plane distance sigma (pixel footprints per pixel of tap distance)"),
-        Param("feedback", 1, 0, 1, "history fed back: 1 = the first à-trous iteration (the paper), 0 = the temporal integration"),
+        Param("feedback", 0, 0, 1, "history fed back: 0 = the temporal integration (default: keeps the energy), "
+              "1 = the first à-trous iteration (the paper; loses light on heavy-tailed input, see docs/techniques/SVGF.md)"),
         Param("clamp_sigma", 0.0, 0.0, 16.0, "history luminance clamp to the 3x3 mean ± this x max(spatial, "
               "temporal sigma); 0 = off (the paper)"),
         Param("pair_variance", 0, 0, 1, "luminance weight from the pair's variance (symmetric: keeps the energy of "
@@ -158,6 +165,7 @@ class SVGFPass(_FilterPass):
         res = rc.resources
         prog = rc.programs.compute("filters/svgf_temporal.comp")
         bind_frame(rc, prog, frame)
+        rc.scene.bind(prog)  # materials: the emission that bypasses demodulation
         units = Units(1)
         for uni, name in (("u_color", COLOR), ("u_gb_albedo", ALBEDO), ("u_gb_position", POSITION),
                           ("u_gb_normal", NORMAL), ("u_gb_motion", MOTION), ("u_hist_illum", "svgf.illum@prev"),
@@ -195,11 +203,17 @@ class TAAPass(_FilterPass):
                 Res("taa.aux", history=True, check="finite"),
                 Res("taa.pos", history=True, check="finite"),
                 Res("taa.debug", check="radiance"))
+    # lighting edits restart the history: on 1-spp input the clip box is too wide to catch a
+    # moving sun (measured without the reset: flicker 0.61x Cycles' but the relit region still
+    # 3.4x the still level 8 frames after the stop; docs/techniques/TAA.md)
     history_resets = FILTER_RESETS
     params = (
         Param("alpha", 0.1, 0.01, 1.0, "least weight of the current frame (1/history length until then)"),
         Param("gamma", 1.25, 0.25, 4.0, "clip box: 3x3 mean ± gamma x max(spatial, temporal sigma)"),
         Param("max_history", 32, 1, 1024, "history length cap (debug view: length / max_history)"),
+        Param("input_filter", 1, 0, 1, "1: blend the same-surface binomial of this frame's samples (Karis' "
+              "reconstruction filter; 5x5 while the history is young, else 3x3); 0: the pixel's own sample"),
+        Param("young", 8.0, 0.0, 1024.0, "history length up to which the input filter is 5x5"),
     )
     quality_ladder = ({"alpha": 0.2}, {"alpha": 0.1}, {"alpha": 0.1, "gamma": 1.0}, {"alpha": 0.05, "gamma": 1.0})
 
@@ -216,6 +230,8 @@ class TAAPass(_FilterPass):
         set_uniform(prog, "u_alpha", float(self["alpha"]))
         set_uniform(prog, "u_gamma", float(self["gamma"]))
         set_uniform(prog, "u_max_history", float(self["max_history"]))
+        set_uniform(prog, "u_input_filter", int(self["input_filter"]))
+        set_uniform(prog, "u_young", float(self["young"]))
         for unit, name in enumerate(("taa.history", "taa.aux", "taa.pos", "taa.debug")):
             res[name].bind_to_image(unit, read=False, write=True)
         self._run(rc, prog)
