@@ -48,12 +48,13 @@ def main():
     ap.add_argument("--frames", type=int, default=16)
     ap.add_argument("--cold", type=int, default=8, help="cold-start frames averaged for 'after 1 frame'")
     ap.add_argument("--ref-spp", type=int, default=256)
-    ap.add_argument("--only", default="", help="comma-separated config names (default: all)")
+    ap.add_argument("--only", default="", help="';'-separated config names (default: all)")
     ap.add_argument("--filters", action="store_true", help="also the filters on cornell / sunlit_room")
     a = ap.parse_args()
     sys.path.insert(0, str(REPO / "scripts"))
     from _checkout import setup_blender
     setup_blender()
+    import bpy
     import numpy as np
     from gi_preview.blender import demo_scenes as D
     from gi_preview.blender.export import export_scene
@@ -128,7 +129,7 @@ def main():
                                "mean_vs_cycles": float(acc.mean() / ref.mean()), "_imgs": (cold[0], acc)}
         return base_cache[spp]
 
-    only = [s.strip() for s in a.only.split(",") if s.strip()]
+    only = [s.strip() for s in a.only.split(";") if s.strip()]
     for name, props in CONFIGS.items():
         if only and name not in only:
             continue
