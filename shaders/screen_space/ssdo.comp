@@ -14,11 +14,13 @@
 // radius is marched further (far_blocker, common.glsl); a surface met there is a sender
 // too, so the bounce from walls beyond the radius (a room's far side) is not lost.
 // Off screen (a sample, or the far-field march, left the screen: screen space does not know
-// what is there): with SSDO_WORLD the direction is traced through the scene with the shared
-// ray tracer (lib/scene_rt.glsl), at most u_world_rays per pixel and frame; a hit sends its
-// diffuse direct light toward the receiver (next-event estimation at the hit), a miss is open. The
-// untraced off-screen directions take the mean of the traced ones. Without SSDO_WORLD they
-// are unknown: the bounce is the mean over the directions the screen knows.
+// what is there): with SSDO_WORLD one such direction per tile of u_world_tile^2 pixels and
+// frame is traced through the scene with the shared ray tracer (lib/scene_rt.glsl): a hit
+// sends its diffuse direct light toward the receiver (next-event estimation at the hit), a
+// miss is open; that radiance stands for the off-screen directions of every pixel of the
+// tile that faces like the tracer (the tracer rotates per frame; temporal accumulation and
+// the blur average them). Without SSDO_WORLD (or at a tile edge) they are unknown: the
+// bounce is the mean over the directions the screen knows.
 // Output (at u_scale of the full resolution): rgb = mean sender radiance over all samples,
 // a = cosine-weighted fraction of directions that stay open (the GI_AO AOV).
 #define USE_SCENE_BUFFERS
@@ -42,7 +44,7 @@ uniform float u_radius;
 uniform float u_bias;
 
 #ifdef SSDO_WORLD
-uniform int u_world_rays;
+uniform int u_world_tile;  // pixels per side of the tile that shares one traced direction
 uniform float u_world_distance;
 
 // A direction screen space cannot answer (its sample or far-field march left the screen),
@@ -70,16 +72,30 @@ bool world_sender(vec3 O, vec3 dir, inout Rng rng, out vec3 L) {
 }
 #endif
 
+#ifdef SSDO_WORLD
+// One traced direction per tile of u_world_tile x u_world_tile pixels (a power of two <= 8,
+// so tiles never straddle the 8x8 group): among the tile's pixels that have off-screen
+// directions, the one first in a per-frame rotated order traces its first one; its result
+// (the radiance sent back, 0 for a miss) stands for the mean off-screen radiance of every
+// pixel of the tile whose normal is close to the tracer's. The rotation makes every pixel
+// trace in turn, so SSDO's temporal accumulation sees a different direction each frame.
+shared int s_pick[64];
+shared vec4 s_L[64];      // rgb = traced radiance, a = 1 when traced
+shared vec3 s_N[64];
+#endif
+
 void main() {
     ivec2 q = ivec2(gl_GlobalInvocationID.xy);
     ivec2 osize = imageSize(o_ssdo);
-    if (any(greaterThanEqual(q, osize))) return;
+    bool inside = all(lessThan(q, osize));
     ivec2 px = ivec2((vec2(q) + 0.5) * u_resolution / vec2(osize));
-    GPixel g = fetch_g(px);
-    if (!g.valid) { imageStore(o_ssdo, q, vec4(0.0, 0.0, 0.0, 1.0)); return; }
-    vec3 N = g.N;
-    vec3 O = g.P + g.Ng * u_bias;
-    float d0 = view_depth(g.P);
+    GPixel g;
+    g.valid = false;
+    if (inside) g = fetch_g(px);
+    bool live = inside && g.valid;
+    vec3 N = live ? g.N : vec3(0.0, 0.0, 1.0);
+    vec3 O = live ? g.P + g.Ng * u_bias : vec3(0.0);
+    float d0 = live ? view_depth(g.P) : 0.0;
     vec4 rnd = pixel_noise(px, 13u);
     float rot = TWO_PI * rnd.x;
     float cr = cos(rot), sr = sin(rot);
@@ -87,15 +103,13 @@ void main() {
     float open = 0.0, unknown = 0.0;
     int n = max(u_samples, 1);
 #ifdef SSDO_WORLD
-    // the unknown directions traced through the scene: at most u_world_rays per pixel, the
-    // first ones met from a random start in the sample order; the untraced ones take the
-    // mean of the traced ones (same class of direction: off screen)
-    Rng wrng = rng_init(uvec2(px), u_sample, 29u);
+    // the first off-screen direction met from a random start in the sample order is the one
+    // this pixel traces if it is its tile's tracer this frame
     int start = int(rnd.w * float(n)) % n;
-    vec3 wsum = vec3(0.0);
-    float wtraced = 0.0, wunknown = 0.0;
+    vec3 wdir = N;
+    float wunknown = 0.0;
 #endif
-    for (int k = 0; k < n; ++k) {
+    for (int k = 0; k < (live ? n : 0); ++k) {
 #ifdef SSDO_WORLD
         int i = (k + start) % n;
 #else
@@ -111,12 +125,8 @@ void main() {
         vec2 sp = to_pixel(S);
         if (!on_screen(sp)) {
 #ifdef SSDO_WORLD
+            if (wunknown == 0.0) wdir = dir;
             wunknown += 1.0;
-            if (wtraced < float(u_world_rays)) {
-                vec3 Lw;
-                wtraced += 1.0;
-                if (world_sender(O, dir, wrng, Lw)) wsum += Lw;
-            }
 #else
             open += 1.0; unknown += 1.0;
 #endif
@@ -138,12 +148,8 @@ void main() {
             ivec2 fp = far_blocker(O, dir, u_radius, fract(s + 0.5));
             if (fp.x == -2) {
 #ifdef SSDO_WORLD
+                if (wunknown == 0.0) wdir = dir;
                 wunknown += 1.0;
-                if (wtraced < float(u_world_rays)) {
-                    vec3 Lw;
-                    wtraced += 1.0;
-                    if (world_sender(O, dir, wrng, Lw)) wsum += Lw;
-                }
 #else
                 open += 1.0;
                 unknown += 1.0;
@@ -159,13 +165,40 @@ void main() {
         }
     }
 #ifdef SSDO_WORLD
-    if (wtraced > 0.0) bounce += wsum * (wunknown / wtraced);
+    int T = clamp(u_world_tile, 1, 8);
+    ivec2 lq = ivec2(gl_LocalInvocationID.xy);
+    int tile = (lq.y / T) * (8 / T) + lq.x / T;
+    ivec2 lt = lq % T;
+    int rank = ((lt.y * T + lt.x) + int(u_sample % 4096u) * 5) % (T * T);   // rotated per frame
+    if (gl_LocalInvocationIndex < 64u) s_pick[gl_LocalInvocationIndex] = 0x7fffffff;
+    memoryBarrierShared();
+    barrier();
+    bool needs = live && wunknown > 0.0;
+    if (needs) atomicMin(s_pick[tile], rank);
+    memoryBarrierShared();
+    barrier();
+    int pick = s_pick[tile];
+    if (needs && pick == rank) {
+        Rng wrng = rng_init(uvec2(px), u_sample, 29u);
+        vec3 Lw;
+        s_L[tile] = vec4(world_sender(O, wdir, wrng, Lw) ? Lw : vec3(0.0), 1.0);
+        s_N[tile] = N;
+    }
+    memoryBarrierShared();
+    barrier();
+    if (needs) {
+        // the tracer's radiance stands for this pixel's off-screen directions when the two
+        // face alike; otherwise (an edge in the tile) they are unknown: the mean of the known
+        if (dot(N, s_N[tile]) > 0.8) bounce += wunknown * s_L[tile].rgb;
+        else unknown += wunknown;
+    }
     // GI_AO: an off-screen direction counts as open, whatever the trace met (the AO AOV's
     // meaning is the screen-space occlusion within the radius and the on-screen far field)
     open += wunknown;
 #endif
-    // without SSDO_WORLD the bounce is the mean over the directions whose outcome screen
-    // space knows; the unknown ones (off screen) are assumed to look like those (not open,
-    // not black); with it, unknown stays 0
+    if (!inside) return;
+    if (!live) { imageStore(o_ssdo, q, vec4(0.0, 0.0, 0.0, 1.0)); return; }
+    // the bounce is the mean over the directions whose outcome is known (screen space or the
+    // tile's trace); the unknown ones are assumed to look like those (not open, not black)
     imageStore(o_ssdo, q, vec4(sanitize(bounce / max(float(n) - unknown, 1.0)), open / float(n)));
 }

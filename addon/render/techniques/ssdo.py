@@ -59,13 +59,15 @@ class SSDOPass(AOPass):
         Param("bias", 0.01, 0.0, 1.0, "depth bias and normal offset (scene units)"),
         Param("scale", 1.0, 0.25, 1.0, "resolution scale"),
         *FAR_PARAMS,
-        Param("world_rays", 2, 0, 32, "off-screen directions traced through the scene per pixel and frame "
-              "(0 = none: they take the mean of the on-screen ones)"),
+        Param("world_rays", 1, 0, 1, "trace off-screen directions through the scene (1) or not (0: they take "
+              "the mean of the on-screen ones)"),
+        Param("world_tile", 4, 1, 8, "pixels per side of the tile that shares one traced direction per frame "
+              "(rounded down to 1, 2, 4 or 8)"),
     )
     quality_ladder = ({"samples": 4, "radius": 1.0, "scale": 0.5, "world_rays": 0},
-                      {"samples": 8, "radius": 1.5, "scale": 1.0, "world_rays": 2},
-                      {"samples": 16, "radius": 2.0, "scale": 1.0, "world_rays": 3},
-                      {"samples": 32, "radius": 2.5, "scale": 1.0, "world_rays": 4})
+                      {"samples": 8, "radius": 1.5, "scale": 1.0, "world_rays": 1, "world_tile": 2},
+                      {"samples": 16, "radius": 2.0, "scale": 1.0, "world_rays": 1, "world_tile": 2},
+                      {"samples": 32, "radius": 2.5, "scale": 1.0, "world_rays": 1, "world_tile": 1})
 
     def __init__(self, quality=None, **kw):
         super().__init__(quality, **kw)
@@ -90,7 +92,8 @@ class SSDOPass(AOPass):
             far = max(float(np.linalg.norm(np.asarray(hi) - np.asarray(lo))), 1e-3)
         set_uniform(prog, "u_far_distance", far)
         if world_rays > 0:
-            set_uniform(prog, "u_world_rays", world_rays)
+            tile = int(self["world_tile"])
+            set_uniform(prog, "u_world_tile", 8 if tile >= 8 else 4 if tile >= 4 else 2 if tile >= 2 else 1)
             set_uniform(prog, "u_world_distance", far)
         set_uniform(prog, "u_far_points", int(self["far_points"]))
         size = self.out_size(rc)
