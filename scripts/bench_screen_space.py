@@ -186,7 +186,8 @@ def main(argv=None):
 
 def tables(tech: str, path: str, before: str = "") -> str:
     """The Markdown results table of one technique (with DIRECT's row per scene); with
-    ``before``, the relMSE vs one_bounce of that earlier run in a second column."""
+    ``before``, that earlier run's ms/frame, relMSE vs one_bounce and speed-up vs one_bounce
+    each in a "(before)" column beside the current one."""
     with open(path) as f:
         cur = json.load(f)
     old = {}
@@ -199,8 +200,9 @@ def tables(tech: str, path: str, before: str = "") -> str:
         return "n/a" if v is None else f"{v:.2g}×"
 
     ao = tech != "SSR"
-    head = ["scene", "q", "ms/frame", "relMSE vs one_bounce"] + (["(before)"] if old else []) + [
-        "FLIP vs one_bounce", "relMSE vs full", "speed-up (one_bounce)"]
+    b = ["(before)"] if old else []
+    head = ["scene", "q", "ms/frame", *b, "relMSE vs one_bounce", *b, "FLIP vs one_bounce", "relMSE vs full",
+            "speed-up (one_bounce)", *b]
     if ao:
         head += ["AO relMSE", "AO FLIP", "AO mean (Cycles)", "speed-up (AO)"]
     rows = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
@@ -210,11 +212,16 @@ def tables(tech: str, path: str, before: str = "") -> str:
             if e is None:
                 continue
             q = "DIRECT" if key.startswith("DIRECT") else key.split("_q")[-1]
-            r = [scene, q, f"{e['frame_ms']:.1f}", f"{e['vs_one_bounce']['relmse']:.4g}"]
+            o = old.get(scene, {}).get("techniques", {}).get(key)
+            r = [scene, q, f"{e['frame_ms']:.1f}"]
             if old:
-                o = old.get(scene, {}).get("techniques", {}).get(key)
+                r.append(f"{o['frame_ms']:.1f}" if o else "–")
+            r.append(f"{e['vs_one_bounce']['relmse']:.4g}")
+            if old:
                 r.append(f"{o['vs_one_bounce']['relmse']:.4g}" if o else "–")
             r += [f"{e['vs_one_bounce']['flip']:.4g}", f"{e['vs_full']['relmse']:.4g}", sp(e.get("speedup_vs_one_bounce"))]
+            if old:
+                r.append(sp(o.get("speedup_vs_one_bounce")) if o else "–")
             if ao:
                 if "ao_vs_cycles" in e and q != "DIRECT":
                     r += [f"{e['ao_vs_cycles']['relmse']:.4g}", f"{e['ao_vs_cycles']['flip']:.4g}",

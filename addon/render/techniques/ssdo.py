@@ -6,9 +6,10 @@ when it faces the receiver, weighted by how far that radiance toward the camera 
 the radiance sent to the receiver (its diffuse share; its glossy share only near the camera
 direction); directions open within the radius are marched further and a surface met there
 sends too; directions whose sample or march leaves the screen are traced through the scene
-with the shared ray tracer, up to ``world_rays`` per pixel and frame, the hit sending its
-direct light toward the receiver (lib/scene_rt.glsl); with ``world_rays`` 0 they are unknown
-and the bounce is the mean over the known ones) → ``ssdo_temporal`` → ``ssdo_blur`` →
+with the shared ray tracer, one per tile of ``world_tile``² pixels and frame (the tracer
+rotates per frame; its radiance stands for the tile's pixels that face alike), the hit sending
+its direct light toward the receiver (lib/scene_rt.glsl); with ``world_rays`` 0 they are
+unknown and the bounce is the mean over the known ones) → ``ssdo_temporal`` → ``ssdo_blur`` →
 ``ssdo_composite``
 (``color += albedo_d * bounce``; DIRECT already lights with the world, shadowed by its
 world-light maps). The fraction of directions that stay open is the ``GI_AO`` AOV.
@@ -22,12 +23,13 @@ Compared with Cycles "one_bounce" (and "full"). See docs/techniques/SSDO.md.
 | scale | 0.25–1 | resolution scale of the SSDO pass |
 | far_points | 0–32 | far-field march points past the radius (0 = the radius only) |
 | far_distance | 0–1e4 | far-field march length (0 = the scene's bounding diagonal) |
-| world_rays | 0–32 | off-screen directions traced through the scene per pixel and frame (0: mean of the on-screen ones) |
+| world_rays | 0–1 | trace off-screen directions through the scene (0: mean of the on-screen ones) |
+| world_tile | 1–8 | pixels per side of the tile that shares one traced direction per frame (1, 2, 4 or 8) |
 | blur_radius | 0–8 | bilateral kernel radius (pixels) |
 | max_history | 1–1024 | temporal frames averaged at most |
 
-Quality ladder (samples, radius, scale, world_rays, blur): 0 = 4, 1.0, 0.5, 0, 3;
-1 = 8, 1.5, 1, 2, 2; 2 = 16, 2.0, 1, 3, 2; 3 = 32, 2.5, 1, 4, 1.
+Quality ladder (samples, radius, scale, world_rays, world_tile, blur): 0 = 4, 1.0, 0.5, 0, -, 3;
+1 = 8, 1.5, 1, 1, 2, 2; 2 = 16, 2.0, 1, 1, 2, 2; 3 = 32, 2.5, 1, 1, 1, 1.
 """
 from __future__ import annotations
 
