@@ -328,6 +328,31 @@ def test_settings_contract():
         bpy.data.scenes.remove(sc)
 
 
+def test_saved_enum_values_stay_stable():
+    """A .blend stores an enum as its item's integer value: the values must not depend on the
+    menu's order, or registering a new technique (or filter) would change what saved files
+    read. Files from before the Technique Default filter stored NONE/ATROUS/SVGF as 0/1/2."""
+    from gi_preview.blender.properties import enum_value
+
+    sc = bpy.data.scenes.new("enum_values")
+    try:
+        s = sc.gi_preview
+        den = {i.identifier: i.value for i in s.bl_rna.properties["denoiser"].enum_items}
+        assert {k: den[k] for k in ("NONE", "ATROUS", "SVGF")} == {"NONE": 0, "ATROUS": 1, "SVGF": 2}, den
+        assert s.denoiser == "AUTO" and len(set(den.values())) == len(den)
+        tech = {i.identifier: i.value for i in s.bl_rna.properties["technique"].enum_items}
+        assert all(v == enum_value(k) for k, v in tech.items()), tech
+        assert len(set(tech.values())) == len(tech), "two technique ids share a stored value"
+        s.denoiser = "SVGF"
+        s.technique = "PT"
+        assert (s["denoiser"], s["technique"]) == (2, enum_value("PT"))
+        # a value no item has (a file saved with positional numbers) renders with AUTO, not an error
+        s["technique"] = 5
+        assert engine_mod._settings(sc)[0] == "AUTO"
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
 def test_mesh_too_large_for_the_gpu_clear_error(monkeypatch):
     """A scene whose vertex data exceeds what GI Preview uploads gets a clear error naming
     the size, and nothing crashes (the limit is lowered here instead of building 2 GiB)."""

@@ -80,7 +80,14 @@ def technique_passes(technique_id: str) -> dict:
 
 def _settings(scene):
     s = scene.gi_preview
-    return s.technique, int(s.quality), int(s.samples)
+    tid = s.technique
+    if not tid:
+        # a stored value no item has (a file saved by a version whose technique menu numbered
+        # its items by position): render with AUTO and say so, rather than fail
+        log.warning("GI Preview: the scene's saved technique is not one this version knows; "
+                    "rendering with AUTO (pick a technique in Render Properties)")
+        tid = "AUTO"
+    return tid, int(s.quality), int(s.samples)
 
 
 def _filter_options(scene) -> dict:
@@ -163,7 +170,7 @@ def final_render(engine, depsgraph):
 def register_passes(engine, scene, view_layer):
     engine.register_pass(scene, view_layer, "Combined", 4, "RGBA", "COLOR")
     try:
-        tid = scene.gi_preview.technique
+        tid = scene.gi_preview.technique or "AUTO"
     except AttributeError:
         tid = "DIRECT"
     for name, (ch, chan, typ) in technique_passes(tid).items():

@@ -1,18 +1,26 @@
 """Scene settings: ``scene.gi_preview`` (public contract, see DESIGN.md)."""
 from __future__ import annotations
 
+import zlib
+
 import bpy
 
 from ..render import techniques
 
 
+def enum_value(identifier: str) -> int:
+    """The number a .blend file stores for an enum item: Blender saves an enum property as its
+    item's integer value, and items without one are numbered by position, so inserting an item
+    would change what every saved file reads. Technique ids keep the value of their name."""
+    return zlib.crc32(identifier.encode()) & 0x7FFFFFFF
 
 
 def technique_items() -> list:
     """Every registered technique (AUTO first), as static enum items (introspectable by
-    scripts through ``bl_rna``); built when the add-on registers."""
+    scripts through ``bl_rna``) with stable values (``enum_value``); built when the add-on
+    registers."""
     infos = sorted(techniques.available(), key=lambda i: i.id != "AUTO")
-    return [(i.id, i.label, i.description) for i in infos]
+    return [(i.id, i.label, i.description, enum_value(i.id)) for i in infos]
 
 
 def _update(self, context):
@@ -37,11 +45,12 @@ class GIPreviewSceneSettings(bpy.types.PropertyGroup):
         description="Level of the technique's quality ladder (0 = fastest, 3 = most accurate)")
     denoiser: bpy.props.EnumProperty(
         name="Denoiser", default="AUTO", update=_update,
+        # explicit values: files saved before "AUTO" existed stored NONE/ATROUS/SVGF as 0/1/2
         items=[("AUTO", "Technique Default", "The technique's own filter: SVGF for ReSTIR GI (meant to be shown "
-                "filtered), none for every other technique (PT stays the unfiltered reference)"),
-               ("NONE", "None", "No filter"),
-               ("ATROUS", "À-Trous", "Edge-avoiding à-trous wavelet filter (Dammertz 2010)"),
-               ("SVGF", "SVGF", "Spatiotemporal variance-guided filtering (Schied 2017)")],
+                "filtered), none for every other technique (PT stays the unfiltered reference)", 3),
+               ("NONE", "None", "No filter", 0),
+               ("ATROUS", "À-Trous", "Edge-avoiding à-trous wavelet filter (Dammertz 2010)", 1),
+               ("SVGF", "SVGF", "Spatiotemporal variance-guided filtering (Schied 2017)", 2)],
         description="Filter that ends the technique's frame graph (for noisy techniques)")
     use_taa: bpy.props.BoolProperty(
         name="TAA", default=False, update=_update,
