@@ -16,6 +16,7 @@ import numpy as np
 from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, GEONORMAL, MOTION, NORMAL, POSITION
+from .screen_space import camera_vectors
 
 COLOR = "color"
 AOV_DIRECT, AOV_EMIT, DBG_W, DBG_M = "restir.direct", "restir.emit", "restir.dbg_w", "restir.dbg_m"
@@ -23,6 +24,16 @@ BIAS_MODES = ("1/M", "MIS-normalised", "ray-traced visibility")
 _HIST = ("restir.y", "restir.meta", "restir.le")
 _TMP = ("restir.tmp_y", "restir.tmp_meta", "restir.tmp_le")
 
+
+
+def bind_reuse_frame(prog, frame, history_valid: bool):
+    """The per-frame uniforms of the ReSTIR passes (DI and GI): camera position, sample index
+    and seed, and ``u_reset`` (1 when the reservoir history cannot be reused)."""
+    pos, _ = camera_vectors(frame)
+    set_uniform(prog, "u_camera_pos", tuple(float(x) for x in pos))
+    set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
+    set_uniform(prog, "u_seed", int(frame.seed) & 0xFFFFFFFF)
+    set_uniform(prog, "u_reset", 0 if (history_valid and not frame.camera_cut) else 1)
 
 class RestirDIPass(Pass):
     name = "restir_di"
@@ -85,11 +96,7 @@ class RestirDIPass(Pass):
         for stage in ((2,) if baseline else (0, 1)):
             prog = rc.programs.compute("restir/restir_di.comp", {**rt.defines, "RESTIR_STAGE": str(stage)})
             rt.bind(prog)
-            inv = np.linalg.inv(np.asarray(frame.view, np.float64))
-            set_uniform(prog, "u_camera_pos", tuple(float(x) for x in inv[:3, 3]))
-            set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
-            set_uniform(prog, "u_seed", int(frame.seed) & 0xFFFFFFFF)
-            set_uniform(prog, "u_reset", 0 if (self.history_valid and not frame.camera_cut) else 1)
+            bind_reuse_frame(prog, frame, self.history_valid)
             set_uniform(prog, "u_light_cands", int(self["candidates"]))
             t = int(self["temporal"])
             set_uniform(prog, "u_temporal", int(t == 1 or (t == 2 and int(frame.index) == 0)))

@@ -25,11 +25,10 @@ that change radiance or positions (geometry, transforms, materials, lights, text
 """
 from __future__ import annotations
 
-import numpy as np
-
 from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, GEONORMAL, MOTION, NORMAL, POSITION
+from .restir import bind_reuse_frame
 
 COLOR = "color"
 AOV_DIFFUSE, AOV_GLOSSY = "restir_gi.diffuse", "restir_gi.glossy"
@@ -80,11 +79,7 @@ class RestirGIPass(Pass):
         res = rc.resources
         prog = rc.programs.compute("restir_gi/restir_gi.comp", rt.defines)
         rt.bind(prog)
-        inv = np.linalg.inv(np.asarray(frame.view, np.float64))
-        set_uniform(prog, "u_camera_pos", tuple(float(x) for x in inv[:3, 3]))
-        set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
-        set_uniform(prog, "u_seed", int(frame.seed) & 0xFFFFFFFF)
-        set_uniform(prog, "u_reset", 0 if (self.history_valid and not frame.camera_cut) else 1)
+        bind_reuse_frame(prog, frame, self.history_valid)
         for k in ("temporal", "spatial", "bias_mode", "max_bounces", "rr_start"):
             set_uniform(prog, "u_" + k, int(self[k]))
         for k in ("radius", "m_cap", "jacobian_max"):
