@@ -76,7 +76,15 @@ def main(argv=None):
     p.add_argument("--before", default="", help="with --tables: an earlier results JSON, shown beside")
     p.add_argument("--seeds", default="", help="run-to-run noise: offsets added to every frame's seed "
                    "(e.g. 0,1000,2000); relMSE vs one_bounce per offset for --scenes/--techniques/--quality")
+    p.add_argument("--same-run", default="", help="a commit (or a tree with addon/ and shaders/) timed against "
+                   "this working tree in one run, renders interleaved (see same_run)")
+    p.add_argument("--worker", default="", help=argparse.SUPPRESS)  # same_run's child: a tree to render with
     opts = p.parse_args(argv)
+    if opts.worker:
+        return worker(opts.worker)
+    if opts.same_run:
+        _import_pkg()
+        return same_run(opts)
     if opts.tables:
         print(tables(opts.tables, os.path.join(opts.out, "screen_space_results.json"), opts.before))
         return None
@@ -422,6 +430,211 @@ def seeds(opts):
         json.dump(out, f, indent=1, default=float)
     log(f"wrote {path}")
     return out
+
+
+SAME_RUN_JSON = os.path.join(REPO, "docs", "results", "screen_space_same_run.json")
+
+
+def worker(tree: str):
+    """same_run's child process: renders with the add-on of ``tree`` (``<tree>/addon`` imported
+    as ``gi_preview``, its shaders from ``<tree>/shaders``). Reads one JSON command per line on
+    stdin ({"scene", "res"} builds a demo scene; {"tech", "q", "samples", "npy"} renders it
+    F12-style after a 1-frame warm-up and saves the image), answers one line starting "@@"."""
+    import tempfile
+
+    os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="gi_preview_user_"))
+    d = tempfile.mkdtemp(prefix="gi_preview_pkg_")
+    os.symlink(os.path.join(os.path.abspath(tree), "addon"), os.path.join(d, "gi_preview"), target_is_directory=True)
+    sys.path.insert(0, d)
+    import importlib
+
+    importlib.import_module("gi_preview")
+    import bpy
+    import numpy as np
+
+    from gi_preview.blender import demo_scenes, reference
+    from gi_preview.blender.export import export_scene
+    from gi_preview.render import session
+
+    sc = sd = None
+
+    def reply(obj):
+        sys.stdout.write("@@" + json.dumps(obj, default=float) + "\n")
+        sys.stdout.flush()
+
+    reply({"ready": tree})
+    for line in sys.stdin:
+        cmd = json.loads(line)
+        if "scene" in cmd:
+            if sc is not None:
+                bpy.data.scenes.remove(sc)
+            sc = demo_scenes.build_demo(cmd["scene"], resolution=int(cmd["res"]))
+            sd = export_scene(reference.evaluated_depsgraph(sc))
+            reply({"scene": cmd["scene"]})
+        elif "tech" in cmd:
+            session.render(sd, cmd["tech"], int(cmd["q"]), 1)  # warm-up: shader compilation, uploads
+            t0 = time.perf_counter()
+            res = session.render(sd, cmd["tech"], int(cmd["q"]), int(cmd["samples"]))
+            wall = (time.perf_counter() - t0) * 1e3
+            np.save(cmd["npy"], np.asarray(res.image, np.float32))
+            reply({"frame_ms": res.frame_ms, "accumulated_ms": wall, "samples": res.samples,
+                   "pass_ms": res.pass_ms, "load1": os.getloadavg()[0]})
+        else:
+            break
+
+
+class _Worker:
+    def __init__(self, tree, label):
+        import subprocess
+
+        self.label = label
+        self.p = subprocess.Popen([sys.executable, os.path.abspath(__file__), "--worker", tree],
+                                  stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1)
+        self.read()
+
+    def read(self):
+        for line in self.p.stdout:
+            if line.startswith("@@"):
+                return json.loads(line[2:])
+        raise RuntimeError(f"the {self.label} worker ended (exit {self.p.wait()})")
+
+    def ask(self, **cmd):
+        self.p.stdin.write(json.dumps(cmd) + "\n")
+        self.p.stdin.flush()
+        return self.read()
+
+    def close(self):
+        try:
+            self.p.stdin.write(json.dumps({"quit": 1}) + "\n")
+            self.p.stdin.close()
+        except OSError:
+            pass
+        self.p.wait(timeout=60)
+
+
+def same_run(opts):
+    """A fair timing of an earlier checkout against this working tree: both render in the SAME
+    run, each in its own child process (its own GL context), alternating render by render
+    (order swapped every other technique/level so a drifting machine load hits both alike):
+    per demo scene, DIRECT q1 and every ``--techniques`` x ``--quality``, F12-style with
+    ``--samples`` frames after a 1-frame warm-up. Cycles' one_bounce error-vs-time curve is
+    re-timed in the same run (``--curve`` spp) for the equal-error speed-ups; the reference is
+    the cached ``--ref-spp`` one_bounce render. Both trees' images are measured with this
+    tree's metrics. ``--same-run`` takes a commit (exported with ``git archive``) or a folder.
+    Writes ``docs/results/screen_space_same_run.json`` (a run of some scenes keeps the others)
+    and ``docs/results/screen_space_same_run.md`` (the tables)."""
+    import subprocess
+    import tempfile
+
+    import numpy as np
+
+    from gi_preview.blender import demo_scenes, reference
+    from gi_preview.compare import metrics, sweep
+
+    reference.ensure_oiio()
+    before = opts.same_run
+    if not os.path.isdir(before):
+        commit = subprocess.run(["git", "-C", REPO, "rev-parse", "--short", before], check=True,
+                                capture_output=True, text=True).stdout.strip()
+        before = tempfile.mkdtemp(prefix=f"ss_before_{commit}_")
+        subprocess.run(f"git -C {REPO} archive {commit} | tar -x -C {before}", shell=True, check=True)
+    else:
+        commit = os.path.basename(os.path.normpath(before))
+    head = subprocess.run(["git", "-C", REPO, "rev-parse", "--short", "HEAD"], capture_output=True,
+                          text=True).stdout.strip()
+    dirty = [ln[3:] for ln in subprocess.run(["git", "-C", REPO, "status", "--porcelain", "--", "addon", "shaders"],
+                                             capture_output=True, text=True).stdout.splitlines()]
+    out = {"res": opts.res, "ref_spp": opts.ref_spp, "samples": opts.samples, "scenes": {}}
+    if os.path.exists(SAME_RUN_JSON):
+        with open(SAME_RUN_JSON) as f:
+            old = json.load(f)
+        if old.get("res") == opts.res and old.get("samples") == opts.samples:
+            out["scenes"] = old.get("scenes", {})
+    npy = tempfile.mkdtemp(prefix="ss_same_run_")
+    workers = {"before": _Worker(before, "before"), "current": _Worker(REPO, "current")}
+    techs = ["DIRECT"] + [t for t in opts.techniques.split(",") if t]
+    levels = [int(q) for q in opts.quality.split(",") if q]
+    curve_spp = [int(x) for x in opts.curve.split(",") if x]
+    try:
+        for scene_name in [s for s in opts.scenes.split(",") if s]:
+            sc = demo_scenes.build_demo(scene_name, resolution=opts.res)
+            ref = reference.get_reference(sc, "one_bounce", opts.ref_spp, cache_dir=opts.cache)
+            for w in workers.values():
+                w.ask(scene=scene_name, res=opts.res)
+            entry = {"when": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "before": commit,
+                     "current": head + (" + uncommitted edits" if dirty else ""), "uncommitted": dirty,
+                     "techniques": {}}
+            t_c = time.perf_counter()
+            curve = [{"spp": c["spp"], "time_ms": c["time_ms"], "relmse": c["relmse"]}
+                     for c in reference.cycles_curve(sc, curve_spp, ref)]
+            entry["cycles_curve"] = curve
+            log(f"{scene_name}: Cycles one_bounce curve ({time.perf_counter() - t_c:.0f} s) " + ", ".join(
+                f"{c['spp']}spp {c['time_ms']:.0f}ms {c['relmse']:.4f}" for c in curve))
+            k = 0
+            for tech in techs:
+                for q in (levels if tech != "DIRECT" else [1]):
+                    order = ("before", "current") if k % 2 == 0 else ("current", "before")
+                    k += 1
+                    e = {}
+                    for side in order:
+                        path = os.path.join(npy, f"{scene_name}_{tech}_{q}_{side}.npy")
+                        try:
+                            r = workers[side].ask(tech=tech, q=q, samples=opts.samples, npy=path)
+                        except RuntimeError:
+                            raise
+                        img = np.load(path)
+                        rel = metrics.relmse(img, ref.image)
+                        sp = sweep.equal_error_speedup(rel, r["frame_ms"] * r["samples"],
+                                                       [(c["spp"], c["time_ms"], c["relmse"]) for c in curve])
+                        e[side] = {**r, "relmse": rel, "nonfinite": int((~np.isfinite(img)).sum()),
+                                   "speedup": sp["speedup"], "speedup_bound": sp["bound"]}
+                    entry["techniques"][f"{tech}_q{q}"] = e
+                    b, c = e["before"], e["current"]
+                    log(f"{scene_name} {tech} q{q}: ms/frame {b['frame_ms']:.1f} -> {c['frame_ms']:.1f}, relMSE "
+                        f"{b['relmse']:.5f} -> {c['relmse']:.5f}, speed-up {b['speedup']} -> {c['speedup']}")
+            out["scenes"][scene_name] = entry
+            import bpy
+
+            bpy.data.scenes.remove(sc)
+            with open(SAME_RUN_JSON, "w") as f:
+                json.dump(out, f, indent=1, default=float)
+    finally:
+        for w in workers.values():
+            w.close()
+    md = same_run_tables(out)
+    with open(os.path.splitext(SAME_RUN_JSON)[0] + ".md", "w") as f:
+        f.write(md)
+    log(f"wrote {SAME_RUN_JSON} and its .md")
+    return out
+
+
+def same_run_tables(out) -> str:
+    """Markdown of a same_run JSON: per scene, ms/frame, relMSE vs one_bounce and equal-error
+    speed-up against Cycles one_bounce (the curve timed in that run), before -> current."""
+    def sp(x):
+        if x.get("speedup") is not None:
+            return f"{x['speedup']:.2g}×"
+        bd = x.get("speedup_bound") or {}
+        return (f"≤{bd['at_most']:.2g}×" if "at_most" in bd else f"≥{bd['at_least']:.2g}×" if "at_least" in bd
+                else "n/a")
+
+    lines = ["# Screen-space family: before issue 9 and now, timed in the same run", "",
+             f"{out['res']} px, {out['samples']} accumulated frames (ms/frame = median frame), relMSE vs Cycles "
+             f"one_bounce at {out['ref_spp']} spp; speed-up = Cycles' time to the same relMSE (its one_bounce curve "
+             "timed in the same run) / the technique's accumulated time. Both trees render in one run, alternating "
+             "render by render (scripts/bench_screen_space.py --same-run). ≤x: worse than Cycles' cheapest point.", ""]
+    for scene, e in out["scenes"].items():
+        lines += [f"## {scene} ({e['when']}; before = {e['before']}, current = {e['current']})", "",
+                  "| technique | q | ms/frame before | now | ratio | relMSE before | now | speed-up before | now |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for key, x in e["techniques"].items():
+            b, c = x["before"], x["current"]
+            tech, q = key.rsplit("_q", 1)
+            lines.append(f"| {tech} | {q} | {b['frame_ms']:.1f} | {c['frame_ms']:.1f} | "
+                         f"{c['frame_ms'] / b['frame_ms']:.2f} | {b['relmse']:.5f} | {c['relmse']:.5f} | "
+                         f"{sp(b)} | {sp(c)} |")
+        lines.append("")
+    return "\n".join(lines)
 
 
 def bpy_scene_remove(sc):

@@ -7,8 +7,9 @@ the radiance sent to the receiver (its diffuse share; its glossy share only near
 direction); directions open within the radius are marched further and a surface met there
 sends too; directions whose sample or march leaves the screen are traced through the scene
 with the shared ray tracer, one per tile of ``world_tile``² pixels and frame (the tracer
-rotates per frame; its radiance stands for the tile's pixels that face alike), the hit sending
-its direct light toward the receiver (lib/scene_rt.glsl); with ``world_rays`` 0 they are
+rotates per frame; its radiance stands for the tile's pixels that face alike, shrunk towards
+the mean of each pixel's known on-screen directions by the share of them it knows), the hit
+sending its direct light toward the receiver (lib/scene_rt.glsl); with ``world_rays`` 0 they are
 unknown and the bounce is the mean over the known ones) → ``ssdo_temporal`` → ``ssdo_blur`` →
 ``ssdo_composite``
 (``color += albedo_d * bounce``; DIRECT already lights with the world, shadowed by its
