@@ -16,6 +16,44 @@ uniform int u_vpl_samples;
 uniform float u_disk_radius;   // fraction of the RSM side
 uniform float u_min_distance;  // d_min of the kernel's distance clamp
 uniform int u_exact_weights;
+uniform int u_filtered_vpls;   // 1: bilinear VPLs (rsm_vpl), 0: the nearest texel
+
+// The VPL at atlas position tc (texels, inside view rect): position, normal (w unused) and
+// flux. Filtered: the bilinear blend of the 4 nearest texels of the view, unseen texels
+// (w = 0) left out of position and normal and counting as no flux, so a sample's VPL moves
+// continuously with the light instead of snapping from texel to texel (the 1/d^4 kernel
+// turns a snap of one texel near the receiver into a visible step). Returns false where no
+// texel of the footprint saw a surface.
+bool rsm_vpl(vec4 rect, vec2 tc, out vec3 xp, out vec3 np, out vec3 flux) {
+    if (u_filtered_vpls == 0) {
+        ivec2 t = ivec2(rect.xy) + min(ivec2(tc), ivec2(rect.zw) - 1);
+        vec4 p = texelFetch(u_rsm_pos, t, 0);
+        xp = p.xyz;
+        np = texelFetch(u_rsm_nrm, t, 0).xyz;
+        flux = texelFetch(u_rsm_flux, t, 0).rgb;
+        return p.w >= 0.5;
+    }
+    vec2 f = clamp(tc - 0.5, vec2(0.0), rect.zw - 1.0);
+    ivec2 b = min(ivec2(f), ivec2(rect.zw) - 2);
+    vec2 w = f - vec2(b);
+    vec4 P = vec4(0.0);
+    vec3 Nn = vec3(0.0);
+    flux = vec3(0.0);
+    for (int k = 0; k < 4; ++k) {
+        ivec2 o = ivec2(k & 1, k >> 1);
+        float wk = (o.x == 1 ? w.x : 1.0 - w.x) * (o.y == 1 ? w.y : 1.0 - w.y);
+        ivec2 t = ivec2(rect.xy) + b + o;
+        vec4 p = texelFetch(u_rsm_pos, t, 0);
+        if (p.w < 0.5 || wk <= 0.0) continue;
+        P += wk * vec4(p.xyz, 1.0);
+        Nn += wk * texelFetch(u_rsm_nrm, t, 0).xyz;
+        flux += wk * texelFetch(u_rsm_flux, t, 0).rgb;
+    }
+    if (P.w < 1e-4) return false;
+    xp = P.xyz / P.w;
+    np = Nn / P.w;
+    return true;
+}
 
 // Projection of P into view v, in [0,1]^2 (clamped; the centre when P is behind the view).
 vec2 rsm_project(int v, vec3 P) {
@@ -24,12 +62,16 @@ vec2 rsm_project(int v, vec3 P) {
     return clamp(c.xy / c.w * 0.5 + 0.5, 0.0, 1.0);
 }
 
-// Sample k of this frame's pattern: the R2 sequence shifted by a per-frame offset, shared
-// by every pixel (smooth per frame, converging over accumulated frames).
+// Sample k of frame `frame`'s pattern: point k + n·frame of the R2 sequence (n samples per
+// frame), shared by every pixel. Consecutive frames take consecutive windows of the one
+// sequence, so any run of frames (an accumulation, or the temporal pass's 8-frame window
+// while the light or camera moves) covers the disk as evenly as one frame with that many
+// samples. Fixed-point (uint, wraps mod 2^32) so the index never loses precision.
 vec2 rsm_xi(int k, uint frame) {
-    vec2 a = vec2(0.7548776662466927, 0.5698402909980532);
-    vec2 off = vec2(float(frame % 4096u) * 0.6180339887, float(frame % 4096u) * 0.4142135624);
-    return fract(vec2(0.5) + a * float(k + 1) + off);
+    uint i = uint(k) + uint(max(u_vpl_samples, 1)) * frame + 1u;
+    uvec2 a = uvec2(3242174889u, 2447445414u);  // R2's (1/g, 1/g²) · 2^32
+    uvec2 x = i * a + uvec2(0x80000000u);         // 0.5 + i·a mod 1
+    return vec2(x >> 8u) * (1.0 / 16777216.0);
 }
 
 // E/π at P with normal N from every view's VPLs (one bounce, no visibility):
@@ -49,12 +91,9 @@ vec3 rsm_gather(vec3 P, vec3 N, uint frame) {
             float phi = TWO_PI * xi.y;
             vec2 s = uv + r * vec2(sin(phi), cos(phi));
             if (any(lessThan(s, vec2(0.0))) || any(greaterThanEqual(s, vec2(1.0)))) continue;
-            ivec2 t = ivec2(rect.xy) + min(ivec2(s * rect.zw), ivec2(rect.zw) - 1);
-            vec4 xp = texelFetch(u_rsm_pos, t, 0);
-            if (xp.w < 0.5) continue;
-            vec3 np = texelFetch(u_rsm_nrm, t, 0).xyz;
-            vec3 flux = texelFetch(u_rsm_flux, t, 0).rgb;
-            vec3 d = P - xp.xyz;
+            vec3 xp, np, flux;
+            if (!rsm_vpl(rect, s * rect.zw, xp, np, flux)) continue;
+            vec3 d = P - xp;
             float d2 = max(dot(d, d), dmin2);
             float kern = max(0.0, dot(np, d)) * max(0.0, -dot(N, d)) / max(d2 * d2, 1e-20);
             float w = u_exact_weights == 1 ? 2.0 * xi.x : 3.0 * xi.x * xi.x;

@@ -22,9 +22,12 @@
   the exact inverse density 2πR²ξ1/N. Kernel
   ``Φ·max(0,⟨n_p,x−x_p⟩)·max(0,⟨n,x_p−x⟩)/max(‖x−x_p‖², d_min²)²``: the clamp ``min_distance``
   bounds the singularity and darkens contacts closer than d_min (bias, see the page).
-  The pattern is shared by all pixels of a frame and rotated with the frame's index in the
-  current accumulation (accumulation converges to the full sum over the disk; a moving
-  view or light keeps one pattern, so nothing flickers). It runs at ``low_scale`` of the resolution,
+  The pattern is shared by all pixels of a frame: window ``index`` of one R2 sequence, the
+  frame's index in the current accumulation (accumulation converges to the full sum over
+  the disk; a moving view or light keeps window 0, so the pattern's error does not jump
+  from frame to frame). With ``filtered_vpls`` (off by default) a sample's VPL is the
+  bilinear blend of its 4 texels, so it moves continuously with the light, but a blend
+  across a depth edge is a VPL in mid-air (measured: worse on the sun-lit room). It runs at ``low_scale`` of the resolution,
   then ``RSMResolvePass`` interpolates the four nearest low-resolution samples where their
   normals and planes agree with the pixel's (at least three), and gathers again at full
   resolution where they do not (the paper's screen-space scheme).
@@ -244,6 +247,8 @@ GATHER_PARAMS = (
     Param("radius", 1.0, 0.05, 1.5, "sampling disk radius, fraction of the RSM side (1.42 = whole map)"),
     Param("min_distance", 0.1, 0.0, 10.0, "distance clamp d_min of the 1/d^4 kernel (scene units)"),
     Param("exact_weights", True, doc="weight samples by the exact inverse density 2ξ1 (default; False = the paper's ξ1², biased dark: cornell 0.81-0.86x)"),
+    Param("filtered_vpls", False, doc="bilinear VPLs (a sample moves continuously with the light; blends across depth edges: sun-lit room relMSE 0.0098 -> 0.0179); False: the nearest texel"),
+    Param("pattern_windows", False, doc="each frame takes the next window of the R2 sequence (True) instead of restarting it per accumulation (see bind_pattern)"),
 )
 
 
@@ -257,15 +262,21 @@ def bind_rsm(rc, prog, units: Units, gather: Pass):
     set_uniform(prog, "u_disk_radius", float(gather["radius"]))
     set_uniform(prog, "u_min_distance", float(gather["min_distance"]))
     set_uniform(prog, "u_exact_weights", 1 if gather["exact_weights"] else 0)
+    set_uniform(prog, "u_filtered_vpls", 1 if gather["filtered_vpls"] else 0)
 
 
-def bind_pattern(prog, frame):
-    """The VPL pattern follows the frame's index within the current accumulation, not the
-    global sample counter: an accumulation (F12, a still viewport) walks the patterns and
-    converges, while a moving view or light (each frame a new accumulation) keeps pattern 0,
-    so the pattern's structured error does not change from frame to frame (no flicker:
-    60 moving frames measured 2.2x Cycles' frame-to-frame change with the global counter)."""
-    set_uniform(prog, "u_pattern", int(frame.index) & 0xFFFFFFFF)
+def bind_pattern(prog, frame, gather):
+    """The VPL pattern's index. Default: the frame's index within the current accumulation,
+    so an accumulation (F12, a still viewport) walks consecutive windows of one R2 sequence
+    (rsm_common.glsl) and converges, while a moving view or light (each frame a new
+    accumulation) keeps window 0: the pattern's structured error does not change from frame
+    to frame. ``pattern_windows``: the frame's sample counter instead, so a moving view also
+    walks the windows and the temporal pass averages 8 of them; measured worse (60 moving
+    frames, q0: 1.24x Cycles' frame-to-frame change against 1.08x with window 0: the
+    8-frame running mean leaves an eighth of each new window's error as flicker; before the
+    temporal pass existed a new pattern every frame measured 5.3x)."""
+    idx = frame.sample if gather["pattern_windows"] else frame.index
+    set_uniform(prog, "u_pattern", int(idx) & 0xFFFFFFFF)
 
 
 class RSMGatherPass(Pass):
@@ -282,7 +293,9 @@ class RSMGatherPass(Pass):
         Param("normal_tolerance", 0.9, 0.0, 1.0, "interpolation: min cosine between normals"),
         Param("plane_tolerance", 0.02, 0.0, 1.0, "interpolation: max plane distance, fraction of view depth"),
     )
-    quality_ladder = ({"vpl_samples": 16, "low_scale": 0.25}, {"vpl_samples": 64, "low_scale": 0.25},
+    # q0 32 samples (was 16): 60 moving frames measured 1.06x Cycles' frame-to-frame change with
+    # 16, 0.99x with 32 (docs/techniques/RSM.md, Stability)
+    quality_ladder = ({"vpl_samples": 32, "low_scale": 0.25}, {"vpl_samples": 64, "low_scale": 0.25},
                       {"vpl_samples": 128, "low_scale": 0.5}, {"vpl_samples": 256, "low_scale": 0.5})
 
     def execute(self, rc, frame):
@@ -292,7 +305,7 @@ class RSMGatherPass(Pass):
         units = Units(1)
         bind_gbuffer(rc, prog, units)
         bind_rsm(rc, prog, units, self)
-        bind_pattern(prog, frame)
+        bind_pattern(prog, frame, self)
         size = scaled(rc.size, float(self["low_scale"]))
         set_uniform(prog, "u_low_size", size)
         rc.resources["rsm.low"].bind_to_image(0, read=False, write=True)
@@ -321,7 +334,7 @@ class RSMResolvePass(Pass):
         units = Units(1)
         bind_gbuffer(rc, prog, units)
         bind_rsm(rc, prog, units, self.gather)
-        bind_pattern(prog, frame)
+        bind_pattern(prog, frame, self.gather)
         units.tex(prog, "u_low", rc.resources["rsm.low"])
         g = self.gather
         set_uniform(prog, "u_low_size", scaled(rc.size, float(g["low_scale"])))
