@@ -1,7 +1,9 @@
 // lpv_inject.geom — routes a VPL (or a surfel) to its cells: one point per target cell,
 // gl_Layer = the layer of the 2D-array target.
 // Light (default): a Lambertian VPL of flux Φ is the intensity Φ/π·max(0, n·ω) (W/sr),
-// projected on 2-band SH, added to the cell containing p + ½ cell · n, in the slab A_c of
+// projected on 2-band SH, splatted trilinearly over the cell centres around p + ½ cell · n
+// that lie in front of its surface (LPV_SPLAT_NEAREST: added to the one cell containing
+// that point, the first version), in the slab A_c of
 // every cascade whose membership box holds p, and in the ring slab R_c of the cascade
 // whose box holds p while the next finer one does not (lpv_common.glsl).
 // LPV_GV (cascade u_only_cascade): the surfel's blocking of the flux crossing between two
@@ -17,8 +19,10 @@ layout(points) in;
 #ifdef LPV_GV
 layout(points, max_vertices = 27) out;
 uniform int u_only_cascade;
-#else
+#elif defined(LPV_SPLAT_NEAREST)
 layout(points, max_vertices = 7) out;
+#else
+layout(points, max_vertices = 56) out;  // 8 cells x (A_c + R_c) x up to 4 cascades
 #endif
 in vec3 v_pos[];
 in vec3 v_nrm[];
@@ -66,13 +70,61 @@ void main() {
     vec4 lobe = sh_cosine_lobe(n) * (1.0 / 3.14159265358979);
     vec4 r = lobe * val.r, g = lobe * val.g, b = lobe * val.b;
     bool inner = false;  // inside the membership box of the next finer cascade
+    float wprev = 0.0;   // the VPL's share in A_{c-1} (soft membership)
     for (int c = 0; c < u_cascades; ++c) {
         bool inside = lpv_in_member(c, p);
+#ifdef LPV_HARD_CASCADES
+        float a_c = 1.0, r_c = (c > 0 && !inner) ? 1.0 : 0.0;
+#else
+        // Soft membership: a VPL's share w_c in A_c ramps from 0 at M_c's border to 1 two
+        // cells inside (1 everywhere in the coarsest), made monotone over the cascades
+        // (M_{c-1} lies inside M_c); the ring R_c takes w_c - w_{c-1}. The lookup's sum
+        // A_f + Σ_{c>f} R_c still counts each VPL once (w_f + (1 - w_f)), and a cascade that
+        // moves with the camera moves its VPLs between grids gradually, not by whole cells.
+        float wc = !inside ? 0.0 : (c == u_cascades - 1 ? 1.0 : clamp(lpv_member_margin(c, p) * 0.5, 0.0, 1.0));
+        wc = max(wc, wprev);
+        float a_c = wc, r_c = c > 0 ? wc - wprev : 0.0;
+        wprev = wc;
+        inside = inside && (a_c > 0.0 || r_c > 0.0);
+#endif
         if (inside) {
-            vec3 gc = lpv_cell_coord(c, p + 0.5 * u_lpv_origin[c].w * n);
+            vec3 gp = lpv_cell_coord(c, p);
+            vec3 gc = gp + 0.5 * n;
+#ifdef LPV_SPLAT_NEAREST
             ivec3 cell = ivec3(floor(gc));
-            emit_cell(cell, lpv_slab_all(c), r, g, b);
-            if (c > 0 && !inner) emit_cell(cell, lpv_slab_ring(c), r, g, b);
+            if (a_c > 0.0) emit_cell(cell, lpv_slab_all(c), a_c * r, a_c * g, a_c * b);
+            if (r_c > 0.0) emit_cell(cell, lpv_slab_ring(c), r_c * r, r_c * g, r_c * b);
+#else
+            // trilinear splat over the 8 cell centres around p + ½ cell · n, leaving out
+            // centres behind the VPL's surface (its light would start behind the wall);
+            // weights renormalised, so the VPL's flux is kept. A VPL moving with its light
+            // moves its light between cells continuously (nearest-cell injection stepped).
+            vec3 f = gc - 0.5;
+            ivec3 base = ivec3(floor(f));
+            vec3 t = f - vec3(base);
+            float w[8];
+            float wsum = 0.0;
+            for (int k = 0; k < 8; ++k) {
+                ivec3 o = ivec3(k & 1, (k >> 1) & 1, k >> 2);
+                float wk = (o.x == 1 ? t.x : 1.0 - t.x) * (o.y == 1 ? t.y : 1.0 - t.y) * (o.z == 1 ? t.z : 1.0 - t.z);
+                if (dot(vec3(base + o) + 0.5 - gp, n) <= 0.0) wk = 0.0;
+                w[k] = wk;
+                wsum += wk;
+            }
+            if (wsum <= 1e-6) {  // a diagonal normal can leave every centre behind; the nearest cell
+                ivec3 cell = ivec3(floor(gc));
+                if (a_c > 0.0) emit_cell(cell, lpv_slab_all(c), a_c * r, a_c * g, a_c * b);
+                if (r_c > 0.0) emit_cell(cell, lpv_slab_ring(c), r_c * r, r_c * g, r_c * b);
+            } else {
+                for (int k = 0; k < 8; ++k) {
+                    if (w[k] <= 0.0) continue;
+                    float s = w[k] / wsum;
+                    ivec3 cell = base + ivec3(k & 1, (k >> 1) & 1, k >> 2);
+                    if (a_c > 0.0) emit_cell(cell, lpv_slab_all(c), (s * a_c) * r, (s * a_c) * g, (s * a_c) * b);
+                    if (r_c > 0.0) emit_cell(cell, lpv_slab_ring(c), (s * r_c) * r, (s * r_c) * g, (s * r_c) * b);
+                }
+            }
+#endif
         }
         inner = inside;
     }

@@ -8,18 +8,25 @@
      cell size, so a camera move shifts a grid by whole cells only (no popping).
   2. **Injection** (raster, additive blending into a layered target, one point per RSM
      texel, ``lpv_inject.geom`` picks ``gl_Layer``): each VPL of flux Φ is the Lambertian
-     intensity ``Φ/π·max(0, n·ω)`` projected on 2-band SH, added to the cell that contains
-     it **shifted half a cell along n**. Per cascade c two volumes (slabs): ``A_c`` with every
-     VPL inside c's membership box ``M_c`` (the grid shrunk by one cell), and the ring
-     ``R_c`` (c ≥ 1) with the VPLs inside ``M_c`` but not ``M_{c-1}``. The lookup adds
-     ``A_f + Σ_{c>f} R_c`` (f the finest cascade at the point), which counts every VPL once
-     and lets light of the near VPLs leave the fine cascade (each slab propagates alone).
+     intensity ``Φ/π·max(0, n·ω)`` projected on 2-band SH, splatted trilinearly over the
+     cell centres around it **shifted half a cell along n** (the centres in front of its
+     surface; ``trilinear_injection`` False: the one cell containing it). Per cascade c two
+     volumes (slabs): ``A_c`` with every VPL inside c's membership box ``M_c`` (the grid
+     shrunk by one cell), and the ring ``R_c`` (c ≥ 1) with the VPLs inside ``M_c`` but not
+     ``M_{c-1}``. The lookup adds ``A_f + Σ_{c>f} R_c`` (f the finest cascade at the point),
+     which counts every VPL once and lets light of the near VPLs leave the fine cascade
+     (each slab propagates alone). ``soft_cascades``: a VPL's share in ``A_c`` ramps from 0
+     at ``M_c``'s border to 1 two cells inside and ``R_c`` takes the difference to
+     ``A_{c-1}``'s share, so a cascade following the camera hands VPLs over gradually.
   3. **Geometry volume** (``geometry_volume``, fuzzy occlusion): every RSM texel and every
      G-buffer pixel is a surfel of known area A and normal n; ``A·|n_a| / cell²`` is added to
      channel a of the *staggered* cell between the two cell centres the surfel lies
      between along axis a (one slab per cascade; surfels wider than a cell are split). The
      flux crossing between two cells is scaled by ``1 − B`` of that face, so a wall thinner
-     than a cell blocks wherever it lies in the cells.
+     than a cell blocks wherever it lies in the cells. ``geometry_rays`` N > 0 also traces
+     N×N rays through every staggered cell on the scene's BVH (``lpv_gv_rays.comp``): the
+     share that hits a triangle blocks (the larger of the two is kept), so walls no RSM and
+     no camera pixel sees block too (off by default: cost, see the page).
   4. **Propagation** (``ceil(iteration_scale · grid)`` compute steps, a memory barrier
      between dependent dispatches): each cell gathers from its 6 neighbours the flux
      through its 5 other faces, ``Ω_face · I(ω_face)``, re-emitted as a cosine lobe around the
@@ -146,6 +153,10 @@ class LPVPass(Pass):
         Param("iteration_scale", 0.5, 0.05, 4.0, "propagation steps per cell of the grid side (steps = ceil(scale x grid))"),
         Param("inject_scale", 1.0, 0.0, 1.0, "weight of the injected (unpropagated) light in the result"),
         Param("flux_normalize", True, doc="scale each propagated cell so the clamped SH lobe carries its own flux (no energy gain per step)"),
+        Param("trilinear_injection", True, doc="splat each VPL over the 8 cells around it (in front of its surface); False: the one cell containing it"),
+        Param("soft_cascades", True, doc="a VPL's share in a cascade ramps over 2 cells at its border (False: in or out, a moving cascade pops)"),
+        Param("geometry_rays", 0, 0, 4, "geometry volume from the scene's triangles too: N x N rays per staggered cell (0 = only the RSM and G-buffer surfels)"),
+        Param("geometry_surfels", True, doc="geometry volume from the RSM texels and G-buffer pixels (False: from the rays only)"),
     )
     quality_ladder = ({"grid": 16, "cascades": 2}, {"grid": 24, "cascades": 3}, {"grid": 32, "cascades": 3},
                       {"grid": 40, "cascades": 3})
@@ -155,6 +166,7 @@ class LPVPass(Pass):
         self.tex = None
         self.fbo = self.gv = self.gvd = self.gv_fbo = None
         self.vao = self.gv_vao = self.gb_vao = None
+        self._vao_prog = None
         self.iterations = 0
         self.grid = None
         self._key = None  # what the current volume was computed from (scene version, view, params)
@@ -211,9 +223,14 @@ class LPVPass(Pass):
         for u, name in enumerate((RSM_POS, RSM_NRM, RSM_FLUX), start=1):
             res[name].use(u)
         # injection: one point per RSM texel, additive
-        prog = self._inject_program(rc, None, atlas.size[0], grid)
-        if self.vao is None:
+        defs = {**({} if self["trilinear_injection"] else {"LPV_SPLAT_NEAREST": 1}),
+                **({} if self["soft_cascades"] else {"LPV_HARD_CASCADES": 1})}
+        prog = self._inject_program(rc, defs or None, atlas.size[0], grid)
+        if self.vao is None or self._vao_prog is not prog:
+            if self.vao is not None:
+                self.vao.release()
             self.vao = ctx.vertex_array(prog, [])
+            self._vao_prog = prog
         ctx.disable(moderngl.DEPTH_TEST)
         ctx.enable(moderngl.BLEND)
         ctx.blend_func = moderngl.ONE, moderngl.ONE
@@ -225,7 +242,7 @@ class LPVPass(Pass):
         self.gv_fbo.use()
         self.gv_fbo.clear(0.0, 0.0, 0.0, 0.0)
         ctx.viewport = (0, 0, G, G)
-        if use_gv:
+        if use_gv and (self["geometry_surfels"] or int(self["geometry_rays"]) <= 0):
             gvp = self._inject_program(rc, {"LPV_GV": 1}, atlas.size[0], grid)
             if self.gv_vao is None:
                 self.gv_vao = ctx.vertex_array(gvp, [])
@@ -245,6 +262,18 @@ class LPVPass(Pass):
                 set_uniform(gbp, "u_only_cascade", c)
                 self.gb_vao.render(mode=moderngl.POINTS, vertices=int(rc.width * rc.height))
         ctx.disable(moderngl.BLEND)
+        rays = int(self["geometry_rays"])
+        if use_gv and rays > 0:
+            # blockers from the triangles (walls no RSM and no G-buffer pixel sees)
+            rt = rc.scene.rt()
+            gp = rc.programs.compute("raster3d/lpv_gv_rays.comp", {**rt.defines, "RAYS": str(rays)})
+            rt.bind(gp)
+            grid.uniforms(gp)
+            self.gv.bind_to_image(0, read=True, write=True)
+            self.gvd.bind_to_image(1, read=True, write=True)
+            rc.dispatch(gp, (G + 3) // 4, (G + 3) // 4, (G * C + 3) // 4)
+            # its stores before the propagation's and the lookup's texel fetches
+            ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT | TEXTURE_FETCH_BARRIER_BIT)
         prop = rc.programs.compute("raster3d/lpv_propagate.comp")
         grid.uniforms(prop)
         set_uniform(prop, "u_slabs", S)
@@ -300,6 +329,7 @@ class LPVPass(Pass):
             if o is not None:
                 o.release()
         self.tex = self.fbo = self.vao = self.gv = self.gvd = self.gv_fbo = self.gv_vao = self.gb_vao = None
+        self._vao_prog = None
         self._key = None
 
 
