@@ -15,9 +15,11 @@ Measured numbers are printed by each test and quoted on docs/techniques/RSM.md a
   room's mean over the lit room's (Cycles: 0). RSM has no visibility and leaks; LPV's
   geometry volume must cut its own leak to a quarter or less of what it is without it.
 * Moving light and camera: finite, non-negative; the frame-to-frame change is printed
-  against Cycles' own and bounded at 1.3x (mean) / 1.75x (max) over 6 large moves (the
+  against Cycles' own and bounded at 1.2x (mean) / 1.5x (max) over 6 large moves (the
   60-frame bench measures issue 10's 1.0x, see the pages); RSM without its temporal pass
   must change more per frame than with it.
+* LPV: soft cascade membership counts each VPL once; the triangles' blockers
+  (geometry_rays) cut the thin-wall leak further.
 * Planning: with no shadow-casting light, or open sky only, the passes are skipped with
   the reason.
 * LPV's cascades are snapped to their cells (a sub-cell camera move shifts no grid) and
@@ -148,7 +150,8 @@ def test_thin_wall_leak_and_geometry_volume():
         assert d[..., :3].mean() <= 0.01 * lit_level + ref_dark.mean()
         leaks = {}
         for label, tech, props in (("RSM", "RSM", None), ("LPV", "LPV", None),
-                                   ("LPV without geometry volume", "LPV", {"lpv": {"geometry_volume": False}})):
+                                   ("LPV without geometry volume", "LPV", {"lpv": {"geometry_volume": False}}),
+                                   ("LPV with geometry rays", "LPV", {"lpv": {"geometry_rays": 2}})):
             img = _render(sd_dark, tech, 1, 2, props).image[..., :3]
             assert np.isfinite(img).all() and img.min() >= 0.0
             leaks[label] = float(img.mean() - ref_dark.mean()) / lit_level
@@ -158,6 +161,9 @@ def test_thin_wall_leak_and_geometry_volume():
         assert leaks["LPV without geometry volume"] > 0.02, "the scene no longer makes LPV leak"
         assert leaks["LPV"] <= 0.25 * leaks["LPV without geometry volume"]
         assert leaks["LPV"] <= 0.02
+        # the triangles' blockers (lpv_gv_rays.comp) add the walls no RSM or camera pixel
+        # sees: measured 0.0046 against 0.0066 without them
+        assert leaks["LPV with geometry rays"] <= 0.9 * leaks["LPV"]
     finally:
         bpy.data.scenes.remove(dark)
         bpy.data.scenes.remove(lit)
@@ -193,16 +199,34 @@ def test_moving_light_and_camera_no_flicker():
             means[label] = np.mean(d)
             print(f"{label} frame-to-frame mean |diff|: ours {np.round(d, 4)} Cycles {np.round(d_cyc, 4)}; "
                   f"mean {np.mean(d) / np.mean(d_cyc):.2f}x, max {max(d) / max(d_cyc):.2f}x Cycles'")
-            # Six large moves (the 60-frame bench measures the 1.0x of issue 10: RSM q1 0.96x,
-            # LPV q1 1.01x, see the pages); a regression guard against the old per-frame VPL
-            # pattern (5.3x q0, 2.2x q1 in the 60-frame bench).
-            assert np.mean(d) <= 1.3 * np.mean(d_cyc), label
-            assert max(d) <= 1.75 * max(d_cyc), label
+            # Six large moves; the 60-frame bench measures issue 10's 1.0x (RSM q0-q3
+            # 0.95-0.98x, LPV q0-q1 0.96-0.98x, see the pages). Measured here: RSM 1.07x mean /
+            # 1.18x max, LPV 1.10x / 1.33x; the same six moves started 3 and 6 frames later
+            # measured 1.09-1.19x / 1.24-1.87x (RSM) and 1.13-1.22x / 1.37-1.85x (LPV): six
+            # moves are a noisy sample, the bound leaves that margin.
+            assert np.mean(d) <= 1.2 * np.mean(d_cyc), label
+            assert max(d) <= 1.5 * max(d_cyc), label
         assert means["RSM"] < 0.97 * means["RSM without temporal"], means
     finally:
         for i in range(len(runs)):
             session.release_session(f"raster3d_motion_{i}")
         bpy.data.scenes.remove(sc)
+
+
+def test_lpv_soft_cascades_count_each_vpl_once(cornell):
+    """Soft cascade membership (a VPL's share ramps over 2 cells at a cascade's border, the
+    ring takes the rest) must count every VPL once: the indirect pass's mean stays within 3 %
+    of the hard in-or-out membership's (measured 0.07 % on the Cornell box, 1.4 % on the
+    sun-lit room; a VPL counted twice in the border bands would add far more)."""
+    sd, _ref, _direct = cornell
+    means = {}
+    for label, props in (("soft", None), ("hard", {"lpv": {"soft_cascades": False}})):
+        res = _render(sd, "LPV", 1, 1, props)
+        ind = res.aovs["GI_IndirectDiffuse"][..., :3]
+        assert np.isfinite(ind).all() and ind.min() >= 0.0
+        means[label] = float(ind.mean())
+    print(f"LPV indirect mean, soft / hard cascade membership: {means['soft'] / means['hard']:.4f}")
+    assert abs(means["soft"] / means["hard"] - 1.0) <= 0.03
 
 
 def test_planner_skips_without_shadow_casting_light_or_under_open_sky():

@@ -1,11 +1,12 @@
 #!/usr/bin/env python3
 """3D-raster family (RSM, LPV; VXGI when registered) against Cycles: demo scenes, thin-wall
-leak, stability.
+leak, stability, lag.
 
-    flock /tmp/gi_heavy.lock .venv/bin/python scripts/bench_raster3d.py [--parts compare,leak,stability]
+    flock /tmp/gi_heavy.lock .venv/bin/python scripts/bench_raster3d.py [--parts compare,leak,stability,lag]
         [--scenes cornell,sunlit_room] [--techniques DIRECT,RSM,LPV] [--quality all]
         [--res 64] [--ref-spp 256] [--samples 8] [--baselines cycles,cycles_denoised,eevee]
-        [--stability-frames 60] [--out docs/results/raster3d]
+        [--stability-frames 60] [--stability-quality 0,1,2,3] [--label L] [--set PASS.PARAM=V]
+        [--out docs/results/raster3d]
     (--parts summary: only rewrite summary.md from the folders present)
 
 * ``compare``: scripts/gi_compare.py once per scene and technique (each quality level
@@ -16,11 +17,19 @@ leak, stability.
 * ``leak``: the thin-wall scene of blender_tests/scenes_raster3d.py (two rooms, a wall of
   zero thickness, the light in the left one, the camera in the right one): the dark room's
   mean minus Cycles' (one bounce), over the lit room's mean seen from inside it; LPV with
-  and without its geometry volume. ``<out>/leak.json``.
+  and without its geometry volume, and with the triangles' blockers (geometry_rays 2).
+  ``<out>/leak.json``.
 * ``stability``: the Cornell box at 32 px, ``--stability-frames`` frames with the light and
   the camera moving every frame (viewport-like: history kept, 1 frame each): finite, the
   minimum value, and the mean absolute frame-to-frame difference against Cycles' (64 spp
-  per frame, same poses). ``<out>/stability.json``.
+  per frame, same poses), the largest single step and where it falls, the indirect pass's
+  own change per frame and its second difference in time (flicker), ms per frame.
+  ``--stability-quality``, ``--label`` and ``--set PASS.PARAM=V`` name and configure a run;
+  runs are merged into ``<out>/stability.json`` by (technique, quality, label). Cycles'
+  frames are cached in ``--cache`` (the poses are deterministic).
+* ``lag``: how many frames the bounce of a moved light takes to follow (camera still, the
+  light moved 0.6 m in one step; the share of the way from the old indirect image to the
+  new one per frame, 50 % / 90 % frames). ``<out>/lag.json``.
 The doc pages (docs/techniques/RSM.md, LPV.md) quote these numbers.
 """
 from __future__ import annotations
@@ -64,17 +73,20 @@ def part_compare(o, rows):
                    "--out", out]
             print(" ".join(cmd), flush=True)
             subprocess.run(cmd, check=True)
-    collect(o, rows)
+    # the summary lists every scene folder present, so one scene can be re-run alone
+    present = sorted(d for d in os.listdir(o.out) if os.path.isdir(os.path.join(o.out, d)))
+    collect(o, rows, present)
 
 
-def collect(o, rows):
-    """Rows of every ``<out>/<scene>/<TECH>/results.json`` of the requested scenes, with the
-    mean of each image over the mean of its reference read back from the EXRs."""
+def collect(o, rows, scenes=None):
+    """Rows of every ``<out>/<scene>/<TECH>/results.json`` of the given scenes (default: the
+    requested ones), with the mean of each image over the mean of its reference read back
+    from the EXRs."""
     from gi_preview.blender import reference
     from gi_preview.compare import imageio
 
     reference.ensure_oiio()
-    for scene in o.scenes.split(","):
+    for scene in scenes or o.scenes.split(","):
         base = os.path.join(o.out, scene)
         for tech in sorted(os.listdir(base)) if os.path.isdir(base) else ():
             out = os.path.join(base, tech)
@@ -151,7 +163,8 @@ def part_leak(o):
     configs = [("DIRECT", {}, "DIRECT"), ("RSM", {}, "RSM")]
     if "LPV" in o.techniques.split(","):
         configs += [("LPV", {}, "LPV, geometry volume on"),
-                    ("LPV", {"lpv": {"geometry_volume": False}}, "LPV, geometry volume off")]
+                    ("LPV", {"lpv": {"geometry_volume": False}}, "LPV, geometry volume off"),
+                    ("LPV", {"lpv": {"geometry_rays": 2}}, "LPV, geometry volume + triangles (geometry_rays 2)")]
     for q in (1,):
         for k, (tech, props, label) in enumerate(configs):
             sess = f"leak{k}"
@@ -186,7 +199,56 @@ def move(sc, k, n):
     cam.location = (cx + 0.3 * t, cy, cz + 0.2 * t)
 
 
+def _overrides(o) -> dict:
+    """``--set PASS.PARAM=VALUE`` (repeatable) as FrameGraph.set_properties' dict."""
+    props = {}
+    for item in o.set or ():
+        key, val = item.split("=", 1)
+        pname, param = key.split(".", 1)
+        v = {"true": True, "false": False}.get(val.lower(), None)
+        if v is None:
+            v = float(val) if any(c in val for c in ".e") else int(val)
+        props.setdefault(pname, {})[param] = v
+    return props
+
+
+def _merge_runs(path, head, runs, key=("technique", "quality", "label")):
+    """Write ``head`` + runs into ``path``, keeping the runs of an earlier file whose key is
+    not re-measured now (the parts can be run in several short locked commands)."""
+    old = []
+    if os.path.isfile(path):
+        with open(path) as f:
+            old = json.load(f).get("runs", [])
+    new_keys = {tuple(r.get(k) for k in key) for r in runs}
+    out = dict(head)
+    out["runs"] = [r for r in old if tuple(r.get(k) for k in key) not in new_keys] + runs
+    out["runs"].sort(key=lambda r: (str(r.get("technique")), str(r.get("label")), r.get("quality", 0)))
+    with open(path, "w") as f:
+        json.dump(out, f, indent=1)
+
+
+def _cycles_motion(o, sc, n):
+    """Cycles one_bounce at 64 spp on the n poses (cached: the poses are deterministic)."""
+    import numpy as np
+
+    from gi_preview.blender import reference
+
+    path = os.path.join(o.cache, f"stability_cycles_cornell_{n}f_32px_64spp.npy")
+    if os.path.isfile(path):
+        return list(np.load(path))
+    cyc = []
+    for k in range(n):
+        move(sc, k, n)
+        cyc.append(reference.render_cycles(sc, 64, "one_bounce")[0][..., :3])
+    os.makedirs(o.cache, exist_ok=True)
+    np.save(path, np.stack(cyc))
+    return cyc
+
+
 def part_stability(o):
+    """60 moving frames (viewport-like: history kept, one frame per pose) per technique and
+    quality level; per run the frame-to-frame mean |diff| per frame, its mean and max, the
+    frame of the max, and the ratios to Cycles' (mean to mean, max to max)."""
     import bpy
     import numpy as np
 
@@ -196,36 +258,121 @@ def part_stability(o):
 
     n = o.stability_frames
     sc = demo_scenes.build_demo("cornell", resolution=32)
-    cyc = []
-    for k in range(n):
-        move(sc, k, n)
-        cyc.append(reference.render_cycles(sc, 64, "one_bounce")[0][..., :3])
+    cyc = _cycles_motion(o, sc, n)
     d_cyc = [float(np.abs(a - b).mean()) for a, b in zip(cyc, cyc[1:])]
-    out = {"frames": n, "res": 32, "cycles_spp": 64, "cycles": {"mean": float(np.mean(d_cyc)),
-                                                              "max": float(np.max(d_cyc))}, "runs": []}
-    for tech in [t for t in o.techniques.split(",") if t != "DIRECT"]:
-        for q in (0, 1):
-            ours, t0 = [], time.perf_counter()
+    head = {"frames": n, "res": 32, "cycles_spp": 64,
+            "cycles": {"mean": float(np.mean(d_cyc)), "max": float(np.max(d_cyc)),
+                       "diffs": [round(x, 6) for x in d_cyc]}}
+    props = _overrides(o)
+    runs = []
+    for tech in o.techniques.split(","):  # DIRECT too: what the direct light alone changes
+        for q in [int(x) for x in o.stability_quality.split(",")]:
+            ours, ind, ms, t0 = [], [], [], time.perf_counter()
             fin, mn = True, float("inf")
             for k in range(n):
                 move(sc, k, n)
                 sd = export_scene(reference.evaluated_depsgraph(sc))
-                img = S.render(sd, tech, q, 1, keep_history=True, session="stab").image[..., :3]
+                if k == 0 and props:
+                    S.render(sd, tech, q, 1, keep_history=True, session="stab")
+                    _set_props("stab", props)
+                res = S.render(sd, tech, q, 1, keep_history=True, session="stab")
+                img = res.image[..., :3]
                 fin &= bool(np.isfinite(img).all())
                 mn = min(mn, float(img.min()))
                 ours.append(img)
+                ms.append(res.frame_ms)
+                if "GI_IndirectDiffuse" in res.aovs:
+                    ind.append(res.aovs["GI_IndirectDiffuse"][..., :3])
             S.release_session("stab").result(timeout=60)
             d = [float(np.abs(a - b).mean()) for a, b in zip(ours, ours[1:])]
-            r = {"technique": tech, "quality": q, "finite": fin, "min": mn, "mean": float(np.mean(d)),
-                 "max": float(np.max(d)), "ratio_mean": float(np.mean(d) / np.mean(d_cyc)),
-                 "wall_s": time.perf_counter() - t0}
-            out["runs"].append(r)
-            print(f"stability {tech} q{q}: finite {fin}, min {mn:.3g}, frame-to-frame mean {r['mean']:.4f} "
-                  f"max {r['max']:.4f} vs Cycles mean {out['cycles']['mean']:.4f} max {out['cycles']['max']:.4f}",
+            # the indirect pass alone: its change per frame and its second difference in time
+            # (flicker: a smooth change has none)
+            ind_d = [float(np.abs(a - b).mean()) for a, b in zip(ind, ind[1:])]
+            ind_d2 = [float(np.abs(a - 2 * b + c).mean()) for a, b, c in zip(ind, ind[1:], ind[2:])]
+            r = {"technique": tech, "quality": q, "label": o.label or "default", "props": props,
+                 "finite": fin, "min": mn, "mean": float(np.mean(d)), "max": float(np.max(d)),
+                 "max_at": int(np.argmax(d)) + 1, "ratio_mean": float(np.mean(d) / np.mean(d_cyc)),
+                 "ratio_max": float(np.max(d) / np.max(d_cyc)),
+                 "ratio_mean_after8": float(np.mean(d[8:]) / np.mean(d_cyc[8:])),
+                 "ratio_max_after8": float(np.max(d[8:]) / np.max(d_cyc[8:])),
+                 "indirect_change": float(np.mean(ind_d)) if ind_d else None,
+                 "indirect_flicker": float(np.mean(ind_d2)) if ind_d2 else None,
+                 "frame_ms": float(np.median(ms)), "wall_s": time.perf_counter() - t0,
+                 "diffs": [round(x, 6) for x in d]}
+            runs.append(r)
+            print(f"stability {tech} q{q} [{r['label']}]: finite {fin}, min {mn:.3g}, frame-to-frame mean "
+                  f"{r['mean']:.4f} ({r['ratio_mean']:.3f}x) max {r['max']:.4f} ({r['ratio_max']:.2f}x, frame "
+                  f"{r['max_at']}); after frame 8 {r['ratio_mean_after8']:.3f}x / {r['ratio_max_after8']:.2f}x; "
+                  f"indirect change {r['indirect_change'] or 0:.4f} flicker {r['indirect_flicker'] or 0:.4f}; "
+                  f"Cycles mean {head['cycles']['mean']:.4f} max {head['cycles']['max']:.4f}; {r['frame_ms']:.0f} ms/frame, "
+                  f"{r['wall_s']:.0f} s",
                   flush=True)
     bpy.data.scenes.remove(sc)
-    with open(os.path.join(o.out, "stability.json"), "w") as f:
-        json.dump(out, f, indent=1)
+    _merge_runs(os.path.join(o.out, "stability.json"), head, runs)
+
+
+def part_lag(o):
+    """How many frames the bounce of a moved light takes to follow: the Cornell box at 32 px,
+    camera still, the light held at pose A for ``hold`` frames, then moved in one step to
+    pose B (0.6 m across the ceiling) and held (viewport-like frames, history kept). Per
+    frame after the step, the share of the way from A's indirect image to B's that the
+    GI_IndirectDiffuse pass has gone: ``<I_t - T_A, T_B - T_A> / |T_B - T_A|²`` with T_A, T_B
+    fresh 16-frame renders of each pose (noise is mostly orthogonal to the step). Lag =
+    the first frame after the step at which the share reaches 0.5 / 0.9."""
+    import bpy
+    import numpy as np
+
+    from gi_preview.blender import demo_scenes, reference
+    from gi_preview.blender.export import export_scene
+    from gi_preview.render import session as S
+
+    sc = demo_scenes.build_demo("cornell", resolution=32)
+    light = next(ob for ob in sc.objects if ob.type == "LIGHT")
+    base = tuple(light.location)
+    poses = [(base[0] - 0.3, base[1], base[2]), (base[0] + 0.3, base[1], base[2])]
+    hold, after = 12, o.lag_frames
+    props = _overrides(o)
+    runs = []
+
+    def ind(res):
+        return res.aovs["GI_IndirectDiffuse"][..., :3].astype(np.float64)
+
+    for tech in [t for t in o.techniques.split(",") if t != "DIRECT"]:
+        for q in [int(x) for x in o.stability_quality.split(",")]:
+            targets = []
+            for p in poses:
+                light.location = p
+                sd = export_scene(reference.evaluated_depsgraph(sc))
+                if props:
+                    S.render(sd, tech, q, 1, session="lagref", warmup=False)
+                    _set_props("lagref", props)
+                targets.append(ind(S.render(sd, tech, q, 16, session="lagref")))
+                S.release_session("lagref").result(timeout=60)
+            ta, tb = targets
+            step = tb - ta
+            share = []
+            for k in range(hold + after):
+                light.location = poses[0] if k < hold else poses[1]
+                sd = export_scene(reference.evaluated_depsgraph(sc))
+                if k == 0 and props:
+                    S.render(sd, tech, q, 1, keep_history=True, session="lag")
+                    _set_props("lag", props)
+                img = ind(S.render(sd, tech, q, 1, keep_history=True, session="lag"))
+                if k >= hold:
+                    share.append(float(np.sum((img - ta) * step) / max(np.sum(step * step), 1e-20)))
+            S.release_session("lag").result(timeout=60)
+
+            def first(th):
+                return next((i + 1 for i, s in enumerate(share) if s >= th), None)
+
+            r = {"technique": tech, "quality": q, "label": o.label or "default", "props": props,
+                 "lag50": first(0.5), "lag90": first(0.9), "share": [round(s, 4) for s in share]}
+            runs.append(r)
+            print(f"lag {tech} q{q} [{r['label']}]: 50 % after {r['lag50']} frames, 90 % after {r['lag90']}; "
+                  f"share {np.round(share[:20], 2)}", flush=True)
+    bpy.data.scenes.remove(sc)
+    _merge_runs(os.path.join(o.out, "lag.json"), {"res": 32, "hold": hold, "after": after,
+                                                   "step_m": 0.6}, runs)
 
 
 def main(argv=None):
@@ -241,6 +388,12 @@ def main(argv=None):
     p.add_argument("--frames", type=int, default=3)
     p.add_argument("--baselines", default="cycles,cycles_denoised,eevee")
     p.add_argument("--stability-frames", type=int, default=60)
+    p.add_argument("--stability-quality", default="0,1,2,3", help="quality levels of the stability and lag parts")
+    p.add_argument("--lag-frames", type=int, default=30, help="frames after the light's step (lag part)")
+    p.add_argument("--set", action="append", help="PASS.PARAM=VALUE override (stability, lag; repeatable)")
+    p.add_argument("--label", default="", help="name of this configuration in stability.json / lag.json")
+    p.add_argument("--cache", default=os.path.join("/tmp", "gi_bench_raster3d_cache"),
+                   help="folder for the Cycles frames of the stability part (deterministic poses)")
     p.add_argument("--out", default=os.path.join(REPO, "docs", "results", "raster3d"))
     o = p.parse_args(argv)
     os.makedirs(o.out, exist_ok=True)
@@ -257,6 +410,8 @@ def main(argv=None):
         part_leak(o)
     if "stability" in parts:
         part_stability(o)
+    if "lag" in parts:
+        part_lag(o)
 
 
 if __name__ == "__main__":
