@@ -5,21 +5,22 @@ techniques/vxgi.py): the module fixture registers it for these tests and removes
 so the menu, AUTO and the hard-case tests of the other modules never see it.
 Small on purpose (32-40 px, quality 0 = 32³ voxels x 2 cascades, Cycles 128 spp); the q0-q3
 sweeps, the 60-frame stability run and the leak table are in scripts/bench_vxgi.py
-(docs/results/vxgi/). Measured (Blender 5.0.1, llvmpipe, 40 px, q0), printed by each test:
-* cornell vs "full": relMSE 0.072 (DIRECT 0.289), mean ratio 0.825: the issue's +-15 % is
-  NOT met since edge-on voxels stopped showing the mean of their two sides (0.869 before:
-  that mix added light which the cones otherwise lose, see the page); asserted: relMSE <=
-  0.6 x DIRECT and the ratio within +-20 % (a regression bound); the voxel view is lit on
-  100 % of DIRECT's lit pixels (>= 95 %).
-* sunlit_room vs "full": relMSE 0.63 (DIRECT 0.108), mean ratio 2.23 (was 1.10 / 2.71
-  before edge-on voxels stopped showing the mean of their two sides): the issue's "beats
-  DIRECT" is NOT met (sun light still reaches interior corner voxels, see the page);
-  asserted as a regression bound (relMSE <= 0.8, ratio <= 2.5) until it is fixed.
-* two_rooms: the dark room is lit: leak 0.066 of the lit room's mean (default, 1 voxel of
-  dilation), 0.060 without the dilation (0.094 / 0.071 before edge-on voxels stopped showing
-  half of the lit side; asserted: finite, in [0, 1), default <= 0.08 against that regression).
-* moving light and camera (6 frames): frame-to-frame mean |diff| max 0.057 against Cycles'
-  0.062 (asserted <= 1.25x). Total 17.8 s for the file.
+(docs/results/vxgi/). Measured (Blender 5.0.1, llvmpipe, 40 px, q0), printed by each test,
+after per-orientation voxel records, one-sided dilated voxels, edge opacity 0.3 and the
+footprint cap (2026-12-02; before in brackets):
+* cornell vs "full": relMSE 0.110 (DIRECT 0.289) [0.072], mean ratio 0.725 [0.825]: the
+  issue's +-15 % is NOT met (the darker edge-on voxels cost the box's corners light, see
+  the page); asserted: relMSE <= 0.6 x DIRECT and the ratio in [0.65, 1.15] (a regression
+  bound); the voxel view is lit on 100 % of DIRECT's lit pixels (>= 95 %).
+* sunlit_room vs "full": relMSE 0.138 (DIRECT 0.108) [0.63], mean ratio 1.36 [2.23]: the
+  issue's "beats DIRECT" is NOT met; asserted as a regression bound (relMSE <= 0.2, ratio
+  <= 1.6).
+* two_rooms: leak 0.027 of the lit room's mean (default, 1 voxel of dilation) [0.066],
+  0.038 without the dilation [0.060]: dilation now lowers the leak; asserted: finite, in
+  [0, 1), default <= 0.04.
+* moving light and camera (6 frames): frame-to-frame mean |diff| max 0.053 against Cycles'
+  0.062 (asserted <= 1.25x). Total 26.4 s for the file (19.2 s before: the injection lights
+  each orientation bucket of a voxel separately).
 """
 from __future__ import annotations
 
@@ -87,7 +88,8 @@ def test_cornell_beats_direct_and_mean_bounded():
         if err > 0.6 * direct or abs(ratio - 1) > 0.15:
             _dump("cornell", ours=img, cycles=ref)
         assert err <= 0.6 * direct
-        assert abs(ratio - 1.0) <= 0.20  # the acceptance is 0.15: not met (module doc)
+        # the acceptance is +-15 %: NOT met (0.725 measured, module doc); a regression bound
+        assert 0.65 <= ratio <= 1.15
         ind = res.aovs["GI_IndirectDiffuse"][..., :3]
         assert ind.min() >= 0.0 and ind.mean() > 0.2 * img[..., :3].mean()
         ao = res.aovs["GI_AO"][..., 0]
@@ -119,7 +121,7 @@ def test_sunlit_room_regression_bound():
         if err > 0.75 * direct:
             _dump("sunlit_room", ours=img, cycles=ref)
         assert np.isfinite(img).all() and img.min() >= 0.0
-        assert err <= 0.8 and _ratio(img, ref) <= 2.5
+        assert err <= 0.2 and _ratio(img, ref) <= 1.6  # 0.138 / 1.357 measured (was 0.63 / 2.23)
     finally:
         session.release_session("vxgi_sunlit")
         bpy.data.scenes.remove(sc)
@@ -144,7 +146,9 @@ def test_thin_wall_leak_is_measured():
         print(f"two_rooms VXGI q{Q}: leak (dark-room mean - Cycles) / lit-room mean {lit_level:.3f}: "
               + ", ".join(f"{k} {v:.4f}" for k, v in leaks.items()))
         assert all(0.0 <= v < 1.0 for v in leaks.values())
-        assert leaks["default"] <= 0.08  # 0.066 measured; 0.094 when edge-on voxels mixed both sides
+        # 0.027 measured (0.066 before orientation buckets, one-sided dilated voxels, edge opacity
+        # 0.3 and the footprint cap; 0.094 when edge-on voxels mixed both sides)
+        assert leaks["default"] <= 0.04
     finally:
         bpy.data.scenes.remove(dark)
         bpy.data.scenes.remove(lit)

@@ -2,7 +2,7 @@
 """VXGI (voxel cone tracing) measured against Cycles: accuracy, leaks, stability, demo sweeps.
 
     cd /work/main && flock /tmp/gi_heavy.lock .venv/bin/python scripts/bench_vxgi.py
-        [--accuracy] [--leak] [--stability] [--sweep] [--res 48] [--ref-spp 128]
+        [--accuracy] [--leak] [--stability] [--sweep] [--res 48] [--ref-spp 128] [--qualities 0,1,2,3]
         [--out docs/results/vxgi]
 
 * ``--accuracy``: cornell and sunlit_room, VXGI q0-q3 (multi-bounce on; off too at q0, q1) and DIRECT
@@ -81,7 +81,7 @@ def accuracy(o, out):
                      "relmse_full": metrics.relmse(d.image, ref), "relmse_one_bounce": metrics.relmse(d.image, one),
                      "mean_ratio_full": float(d.image[..., :3].mean() / ref[..., :3].mean()),
                      "frame_ms": d.frame_ms, "setup_ms": d.setup_ms})
-        for q in range(4):
+        for q in o.qualities:
             for mb in ((True, False) if q <= 1 else (True,)):
                 r = render_vxgi(sd, q, o.samples, None if mb else {"vxgi_inject": {"multi_bounce": False}})
                 img = r.image
@@ -96,11 +96,15 @@ def accuracy(o, out):
     return rows
 
 
+OLD_EDGE = {"vxgi_inject": {"edge_opacity": 0.05, "footprint_cap": 0.0}, "vxgi_trace": {"footprint_cap": 0.0}}
 LEAK_CONFIGS = (
-    ("no mitigation (thickness 0, opacity x1)", {"vxgi_voxelize": {"thickness": 0.0}}),
-    ("default (thickness 1)", {}),
-    ("thickness 1, opacity x2", {"vxgi_inject": {"opacity_scale": 2.0}, "vxgi_trace": {"opacity_scale": 2.0}}),
-    ("thickness 2", {"vxgi_voxelize": {"thickness": 2.0}}),
+    ("no mitigation (thickness 0, edge opacity 0.05, no footprint cap)",
+     {"vxgi_voxelize": {"thickness": 0.0}, **OLD_EDGE}),
+    ("thickness 1, edge opacity 0.05, no footprint cap", OLD_EDGE),
+    ("thickness 0 (edge opacity 0.3, footprint cap 1)", {"vxgi_voxelize": {"thickness": 0.0}}),
+    ("default (thickness 1, edge opacity 0.3, footprint cap 1)", {}),
+    ("default, opacity x2", {"vxgi_inject": {"opacity_scale": 2.0}, "vxgi_trace": {"opacity_scale": 2.0}}),
+    ("default, thickness 2", {"vxgi_voxelize": {"thickness": 2.0}}),
 )
 
 
@@ -117,7 +121,7 @@ def leak(o, out):
     ref_dark = reference.render_cycles(dark, o.ref_spp, "full")[0]
     lit_level = float(reference.render_cycles(lit, o.ref_spp, "full")[0][..., :3].mean())
     rows = []
-    for q in (0, 1):
+    for q in (x for x in o.qualities if x <= 1):
         for label, props in LEAK_CONFIGS:
             r = render_vxgi(sd, q, o.samples, props)
             img = r.image
@@ -241,6 +245,7 @@ def main(argv=None):
     for s in ("accuracy", "leak", "stability", "sweep"):
         p.add_argument(f"--{s}", action="store_true")
     p.add_argument("--res", type=int, default=48)
+    p.add_argument("--qualities", default="0,1,2,3", help="quality levels of --accuracy (--leak: those <= 1)")
     p.add_argument("--ref-spp", type=int, default=128)
     p.add_argument("--samples", type=int, default=4)
     p.add_argument("--scenes", default=",".join(DEMOS))
@@ -248,6 +253,7 @@ def main(argv=None):
     p.add_argument("--sweep-ref-spp", type=int, default=128)
     p.add_argument("--out", default=os.path.join(REPO, "docs", "results", "vxgi"))
     o = p.parse_args(argv)
+    o.qualities = [int(x) for x in o.qualities.split(",")]
     chosen = [s for s in ("accuracy", "leak", "stability", "sweep") if getattr(o, s)] or [
         "accuracy", "leak", "stability", "sweep"]
     os.makedirs(o.out, exist_ok=True)

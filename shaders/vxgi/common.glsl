@@ -23,9 +23,21 @@
 #endif
 // the occupied voxels of this frame: [0] = count, [1 + i] = flat index (z * N * N + y * N + x,
 // z counting the cascades' slabs)
-// one voxel record: diffuse albedo sum rgb, fragment count (uint), normal sum xyz, sum of
-// the surface points nearest the voxel centre (voxel units, relative to the voxel's corner)
-#define VX_REC 10
+// One voxel record: word 0 = mask of the orientation buckets present, then one bucket of
+// VX_BUCKET words per orientation (dominant axis and sign of the mesh normal: +x, -x, +y,
+// -y, +z, -z): diffuse albedo sum rgb, triangle-fragment count (uint), normal sum xyz, sum of
+// the voxel centre's signed distance to the triangle's plane along its normal (voxel units).
+// Separate buckets keep two surfaces of one voxel at an angle (a room's corner) or facing
+// away from each other (both faces of a closed thin wall) apart: each is lit on its own.
+#define VX_BUCKET 8
+#define VX_REC (1 + 6 * VX_BUCKET)
+
+int vx_bucket(vec3 n) {
+    vec3 a = abs(n);
+    int axis = (a.x >= a.y && a.x >= a.z) ? 0 : (a.y >= a.z ? 1 : 2);
+    return 2 * axis + (n[axis] < 0.0 ? 1 : 0);
+}
+int vx_bucket_offset(int b) { return 1 + b * VX_BUCKET; }
 
 uniform int u_vx_n;                          // voxels per side of one cascade
 uniform int u_vx_cascades;                   // cascades (cell size doubles)
@@ -91,14 +103,22 @@ vec4 vx_sample(vec3 p, float diam, vec3 d, out float width) {
 // to at most t1. Steps of `step_scale` x the cone diameter (at least the local voxel size
 // times step_scale); each sample's opacity is biased by u_vx_opacity_scale and corrected
 // for the step length (1 - (1-a)^(s/w)). Returns (radiance arriving along the cone, opacity).
-vec4 vx_cone(vec3 o, vec3 d, float tan_half, float t0, float t1, float step_scale) {
+// vx_cone_h: the same with the footprint capped for a cone leaving a receiver's plane: the
+// diameter at t stays <= u_vx_cap x the sample's height over that plane, h0 + t cosn (h0:
+// the start's height, cosn: d . n). A 30-degree cone at 60 degrees from the normal grazes the
+// plane; uncapped, its coarse mips reach back over the receiver's own voxel layer and read
+// that surface's far side (the sun-lit outside of a roof under it, the lit side of a wall).
+uniform float u_vx_cap;  // 0: off
+vec4 vx_cone_h(vec3 o, vec3 d, float tan_half, float t0, float t1, float step_scale, float h0, float cosn) {
     vec3 col = vec3(0.0);
     float a = 0.0;
     float t = t0;
     for (int i = 0; i < 256 && t < t1 && a < 0.995; ++i) {
         vec3 p = o + t * d;
         float vs = vx_voxel_size_at(p);
-        float diam = max(2.0 * tan_half * t, vs);
+        float diam = 2.0 * tan_half * t;
+        if (u_vx_cap > 0.0) diam = min(diam, u_vx_cap * (h0 + t * cosn));
+        diam = max(diam, vs);
         float w;
         vec4 s = vx_sample(p, diam, d, w);
         if (w <= 0.0) break;  // left every cascade
@@ -114,6 +134,9 @@ vec4 vx_cone(vec3 o, vec3 d, float tan_half, float t0, float t1, float step_scal
     }
     return vec4(col, a);
 }
+vec4 vx_cone(vec3 o, vec3 d, float tan_half, float t0, float t1, float step_scale) {
+    return vx_cone_h(o, d, tan_half, t0, t1, step_scale, 1e9, 0.0);
+}
 
 // Six cones around n: one along n and five at u_vx_side_angle from it, aperture tan(30 deg)
 // (Crassin; Godot's layout at 60 degrees: weights pi/4 and 3 pi/20). The weights are each
@@ -124,7 +147,7 @@ vec4 vx_cone(vec3 o, vec3 d, float tan_half, float t0, float t1, float step_scal
 // voxels (0: world light only). Returns E; `vis` = the cosine-weighted unoccluded fraction.
 uniform float u_vx_side_angle;  // radians
 vec3 vx_diffuse_cones(vec3 o, vec3 n, float t0, float t1, float step_scale, float rot, vec3 world,
-                      float bounce, out float vis) {
+                      float bounce, out float vis, float h0) {
     vec3 t, b;
     make_basis(n, t, b);
     const float TAN30 = 0.57735;
@@ -143,7 +166,7 @@ vec3 vx_diffuse_cones(vec3 o, vec3 n, float t0, float t1, float step_scale, floa
             d = normalize(ct * n + st * (cos(phi) * t + sin(phi) * b));
             w = w0 * ct;
         }
-        vec4 c = vx_cone(o, d, TAN30, t0, t1, step_scale);
+        vec4 c = vx_cone_h(o, d, TAN30, t0, t1, step_scale, h0, dot(d, n));
         E += w * (bounce * c.rgb + (1.0 - c.a) * world);
         occ += w * c.a;
     }

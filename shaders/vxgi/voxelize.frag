@@ -3,8 +3,8 @@
 // pixel is tested exactly against the triangle (Akenine-Möller's triangle/box separating
 // axis test, box dilated by u_thickness voxels) and, if it overlaps, the fragment adds the
 // triangle's diffuse albedo, normal and its plane's point nearest the voxel centre to the
-// voxel's record (SSBO, atomics): the average over all overlapping triangles is taken by
-// the injection pass. Conservative: every voxel a triangle touches is marked. Emission is
+// voxel's record of the triangle's orientation bucket (SSBO, atomics; vxgi/common.glsl):
+// the average over the overlapping triangles of each bucket is taken by the injection pass. Conservative: every voxel a triangle touches is marked. Emission is
 // not stored: emitters are mesh lights (see inject.comp).
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
@@ -100,9 +100,12 @@ void main() {
     vec3 n = normalize(g_normal);
     if (dot(n, n) < 0.5) n = un;
     // the mesh's own orientation (not flipped to a canonical side): the injection lights both
-    // sides, and a corner voxel (ceiling and wall of a room seen from inside) must average
-    // two normals that face the same side (a canonical flip made such voxels send the
-    // sun-lit outside of a roof into the room)
+    // sides of each record. One record per orientation bucket (vx_bucket: dominant axis and
+    // sign of the normal): a voxel where a roof and a wall meet keeps two records, each with
+    // its own plane, lit and shadowed on its own (one averaged normal and point lay off both
+    // planes and let the sun-lit outside of a roof light the room: sunlit_room 2.2x Cycles)
+    vec3 uno = dot(un, n) < 0.0 ? -un : un;  // the plane's normal, oriented as the mesh
+    int b = vx_bucket(n);
     vec3 h = vec3(0.5 + t);
     for (int k = k0; k <= min(k1, k0 + 15); ++k) {
         vec3 g = unproj(pix, float(k), g_axis);  // voxel corner
@@ -111,18 +114,17 @@ void main() {
         if (!tri_box(centre, h, g_v0, g_v1, g_v2)) continue;
         ivec3 v = ivec3(g);
         uint flat_index = uint(((u_cascade * N + v.z) * N + v.y) * N + v.x);
-        uint base = flat_index * uint(VX_REC);
-        vec3 onplane = centre - un * dot(centre - g_v0, un);  // nearest point of the plane
-        vec3 rel = clamp(onplane - g, vec3(-t), vec3(1.0 + t));
+        uint vbase = flat_index * uint(VX_REC);
+        uint base = vbase + uint(vx_bucket_offset(b));
+        float dist = dot(centre - g_v0, uno);  // the voxel centre's height over the plane
         atomic_add_f(base + 0u, rho.r);
         atomic_add_f(base + 1u, rho.g);
         atomic_add_f(base + 2u, rho.b);
-        if (atomicAdd(vx_rec[base + 3u], 1u) == 0u) vx_list[1u + atomicAdd(vx_list[0], 1u)] = flat_index;
+        atomicAdd(vx_rec[base + 3u], 1u);
         atomic_add_f(base + 4u, n.x);
         atomic_add_f(base + 5u, n.y);
         atomic_add_f(base + 6u, n.z);
-        atomic_add_f(base + 7u, rel.x);
-        atomic_add_f(base + 8u, rel.y);
-        atomic_add_f(base + 9u, rel.z);
+        atomic_add_f(base + 7u, dist);
+        if (atomicOr(vx_rec[vbase], 1u << uint(b)) == 0u) vx_list[1u + atomicAdd(vx_list[0], 1u)] = flat_index;
     }
 }

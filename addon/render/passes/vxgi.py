@@ -11,15 +11,18 @@
   (``shaders/vxgi/voxelize.*``). Chosen over a compute voxeliser because llvmpipe's
   rasteriser spreads the work of large triangles over its threads, where a thread per
   triangle would leave one thread walking a whole wall. Each overlapping triangle adds its
-  diffuse albedo, normal (the mesh's orientation) and nearest plane point to
-  the voxel's record (``vxgi.voxels``, an SSBO, float atomics by compare-and-swap).
-* ``VoxelInjectPass`` (compute): per voxel, the averaged record → direct light from every
+  diffuse albedo, normal (the mesh's orientation) and the voxel centre's distance to its
+  plane to the voxel's record of its orientation bucket (dominant axis and sign of the
+  normal; ``vxgi.voxels``, an SSBO of VX_REC words per voxel, float atomics by
+  compare-and-swap): surfaces of one voxel at an angle or facing apart stay apart.
+* ``VoxelInjectPass`` (compute): per voxel and orientation bucket → direct light from every
   light in Cycles' units on both sides of the voxel's surface, shadowed by the shadow maps
   (the shadow atlas; suns through their RSM view, which covers the whole scene while the
   atlas' sun cascades cover only the camera's frustum), optionally plus last frame's
   indirect irradiance and sky light gathered by six cones per side through the history
   volume (``multi_bounce``). Writes level 0 of ``vxgi.radiance``: six directional volumes
-  (the radiance each voxel emits towards ±x, ±y, ±z: the surface side facing that way),
+  (the radiance each voxel emits towards ±x, ±y, ±z: the surface side facing that way;
+  a dilated voxel shows only the side it lies on; opacity at least ``edge_opacity``),
   then builds the anisotropic mips (``shaders/vxgi/mip.comp``, front-to-back compositing of
   the two children along each direction, as in the paper).
 * ``VoxelTracePass`` (compute): per pixel, six diffuse cones (weights integrating the
@@ -48,7 +51,7 @@ from .shadows import ATLAS, VIEWS
 
 VOXELS, GRID, RADIANCE = "vxgi.voxels", "vxgi.grid", "vxgi.radiance"
 DIFFUSE, GLOSSY, AO, DEBUG = "vxgi.diffuse", "vxgi.glossy", "vxgi.ao", "vxgi.debug"
-VX_REC = 10  # words per voxel record (shaders/vxgi/common.glsl)
+VX_REC = 1 + 6 * 8  # words per voxel record: bucket mask + 6 orientation buckets (shaders/vxgi/common.glsl)
 MAX_CASCADES = 4
 BINDING_RECORDS = 5
 BINDING_LIST = 4
@@ -218,6 +221,8 @@ CONE_PARAMS = (
     Param("max_distance", 0.0, 0.0, 1e4, "cone length (0 = the coarsest cascade's side)"),
     Param("opacity_scale", 1.0, 1.0, 4.0, "opacity bias: voxel opacity x this (against leaks)"),
     Param("side_angle", 60.0, 20.0, 70.0, "angle of the five side cones from the normal (degrees)"),
+    Param("footprint_cap", 1.0, 0.0, 4.0, "diffuse cones' footprint diameter <= this x the sample's height "
+          "over the receiver's plane (0 = off): coarse mips never reach back over the receiver's own surface"),
 )
 
 
@@ -233,7 +238,9 @@ class VoxelInjectPass(Pass):
         Param("shadow_offset", 0.5, 0.0, 4.0, "shadow lookups start this many voxels off the voxel's surface"),
         Param("mesh_exact_max", 64, 0, 256, "emissive meshes up to this many triangles are integrated exactly"),
         Param("directional_opacity", True, doc="level-0 opacity towards each direction = the surface's "
-              "projected coverage |n.D| (else 1: opaque from every side)"),
+              "projected coverage |n.D|, at least edge_opacity (else 1: opaque from every side)"),
+        Param("edge_opacity", 0.3, 0.0, 1.0, "smallest level-0 opacity of an occupied voxel towards any "
+              "direction (an edge-on surface shows black at this opacity; against leaks)"),
     )
     # the voxels' own gather (multi-bounce, sky) steps a whole cone diameter: it runs for
     # every occupied voxel, and later bounces carry less of the image
@@ -294,6 +301,8 @@ class VoxelInjectPass(Pass):
         set_uniform(prog, "u_max_distance", md if md > 0 else float((prev or grid).extent()))
         set_uniform(prog, "u_mesh_exact_max", int(self["mesh_exact_max"]))
         set_uniform(prog, "u_directional_opacity", 1 if self["directional_opacity"] else 0)
+        set_uniform(prog, "u_edge_opacity", float(self["edge_opacity"]))
+        set_uniform(prog, "u_vx_cap", float(self["footprint_cap"]))
         set_uniform(prog, "u_vx_side_angle", float(np.radians(self["side_angle"])))
         set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
         res[VOXELS].bind_to_storage_buffer(BINDING_RECORDS)
@@ -379,6 +388,7 @@ class VoxelTracePass(Pass):
         set_uniform(prog, "u_min_tan", float(self["min_aperture"]))
         set_uniform(prog, "u_vx_side_angle", float(np.radians(self["side_angle"])))
         set_uniform(prog, "u_specular", 1 if self["specular"] else 0)
+        set_uniform(prog, "u_vx_cap", float(self["footprint_cap"]))
         res[COLOR].bind_to_image(0, read=True, write=True)
         res[DIFFUSE].bind_to_image(1, read=False, write=True)
         res[GLOSSY].bind_to_image(2, read=False, write=True)
