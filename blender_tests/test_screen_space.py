@@ -345,7 +345,9 @@ def test_ssr_mirror_reflects_a_gradient_as_a_gradient():
 def test_ssdo_ceiling_lit_only_by_the_floor():
     """A ceiling lit only by light bouncing off a diffuse floor: SSDO's bounce must reach
     it (directions that leave the screen are traced through the scene, not open) without
-    large blotches."""
+    large blotches. Issue 9's acceptance is half the error before it (0.2149 -> <= 0.107);
+    measured 0.0191 with the traced off-screen radiance shrunk towards the on-screen mean
+    (0.0712 without the shrinkage), so the bound is 0.04 to keep that gain."""
     sc, sd, ref, masks = _repro("bounce_room")
     try:
         m = masks["ceiling"]
@@ -353,9 +355,9 @@ def test_ssdo_ceiling_lit_only_by_the_floor():
         err = metrics.relmse(res.image, ref, mask=m)
         ours, theirs = float(res.image[..., :3][m].mean()), float(ref[..., :3][m].mean())
         print(f"bounce_room ceiling: SSDO relMSE {err:.4f}, mean {ours:.3f} vs Cycles {theirs:.3f}")
-        if err > 0.107:
+        if err > 0.04:
             _dump("bounce_room_SSDO", ours=res.image, cycles=ref)
-        assert err <= 0.107
+        assert err <= 0.04, f"bounce_room ceiling relMSE {err:.4f} (issue 9 acceptance 0.107, measured 0.0191)"
         assert abs(ours - theirs) <= 0.3 * theirs
     finally:
         bpy.data.scenes.remove(sc)
