@@ -561,9 +561,11 @@ def same_run(opts):
             ref = reference.get_reference(sc, "one_bounce", opts.ref_spp, cache_dir=opts.cache)
             for w in workers.values():
                 w.ask(scene=scene_name, res=opts.res)
+            # a run of some techniques keeps the scene's other techniques (each entry carries the
+            # speed-ups computed with the Cycles curve of its own run)
             entry = {"when": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "before": commit,
                      "current": head + (" + uncommitted edits" if dirty else ""), "uncommitted": dirty,
-                     "techniques": {}}
+                     "techniques": dict(out["scenes"].get(scene_name, {}).get("techniques", {}))}
             t_c = time.perf_counter()
             curve = [{"spp": c["spp"], "time_ms": c["time_ms"], "relmse": c["relmse"]}
                      for c in reference.cycles_curve(sc, curve_spp, ref)]
@@ -588,6 +590,7 @@ def same_run(opts):
                                                        [(c["spp"], c["time_ms"], c["relmse"]) for c in curve])
                         e[side] = {**r, "relmse": rel, "nonfinite": int((~np.isfinite(img)).sum()),
                                    "speedup": sp["speedup"], "speedup_bound": sp["bound"]}
+                    e["when"] = time.strftime("%H:%M UTC", time.gmtime())
                     entry["techniques"][f"{tech}_q{q}"] = e
                     b, c = e["before"], e["current"]
                     log(f"{scene_name} {tech} q{q}: ms/frame {b['frame_ms']:.1f} -> {c['frame_ms']:.1f}, relMSE "
