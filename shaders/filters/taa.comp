@@ -5,7 +5,10 @@
 // * Reprojection: the history's 2x2 bilinear taps through gbuffer.motion, each kept only if
 //   finite and geometrically the same surface (its stored position within 2 pixel
 //   footprints of this pixel's tangent plane; background stays background): disocclusion
-//   is detected by geometry, not by colour. The kept taps are renormalised.
+//   is detected by geometry, not by colour. The kept taps are renormalised. Where all 4x4
+//   taps around the point pass, the colour is resampled with Catmull-Rom instead (bilinear
+//   resampling blurs the history a little every moving frame, and the blur accumulates).
+// * A light edit caps the history length (u_len_cap) instead of restarting it.
 // * History length per pixel (alpha channel): the blend weight is max(u_alpha, 1/length),
 //   so a disoccluded pixel starts from its own samples and converges like a running mean.
 //   A disoccluded pixel starts from the mean of its 3x3 neighbours on the same surface
@@ -17,12 +20,12 @@
 //   samples would otherwise cut the rare bright samples every frame and darken the result.
 //   No min/max box and no tone-mapped blend for the same reason (both are biased on noisy
 //   input); the blend is linear, so the running mean is the samples' mean.
-// * Reconstruction filter of the current frame (Karis' filtered current sample; here a 3x3
-//   binomial over the neighbours on the same surface, 5x5 while the history is young,
-//   u_input_filter = 1): a 1-spp path-traced
+// * Reconstruction filter of the current frame (Karis' filtered current sample; here a 5x5
+//   binomial over the neighbours on the same surface (u_radius 2; 3x3 once the history is
+//   older than u_young with u_radius 1), u_input_filter = 1): a 1-spp path-traced
 //   sample blended alone at weight alpha lets its full noise through every frame (flicker
 //   2-4x Cycles' frame-to-frame change on the sun-lit room); the binomial divides its standard
-//   deviation by up to 2.7 and is linear and normalised, so it keeps the energy. The clip box
+//   deviation by up to 3.7 (5x5; 2.7 at 3x3) and is linear and normalised, so it keeps the energy. The clip box
 //   and the temporal moments still use the raw samples (they describe the sample spread).
 // Off-screen, geometrically different or non-finite history is dropped.
 #include "lib/common.glsl"
@@ -47,7 +50,16 @@ uniform float u_alpha;
 uniform float u_gamma;
 uniform float u_max_history;
 uniform int u_input_filter;  // 1: blend the same-surface binomial of this frame's samples
-uniform float u_young;       // history length up to which the input filter is 5x5 (3x3 beyond)
+uniform float u_young;       // history length up to which the input filter is 5x5
+uniform int u_radius;        // input filter radius beyond (1: 3x3, 2: 5x5)
+uniform int u_history_filter;    // 0: bilinear history, 1: Catmull-Rom where all 16 taps are usable
+uniform float u_len_cap;  // history length kept through this frame (a light edit: light_history)
+
+// Catmull-Rom weights of the taps at -1, 0, 1, 2 for a fraction f in [0, 1)
+vec4 catmull_rom_weights(float f) {
+    return vec4(f * (-0.5 + f * (1.0 - 0.5 * f)), 1.0 + f * f * (-2.5 + 1.5 * f),
+                f * (0.5 + f * (2.0 - 1.5 * f)), f * f * (-0.5 + 0.5 * f));
+}
 
 // Reconstruction filter of this frame's samples: a (2r+1)^2 binomial over the neighbours on
 // the same surface (tangent plane within 2 pixel footprints, normal within ~25 degrees; for a
@@ -145,6 +157,27 @@ void main() {
                 hm2 += w * max(ha.x, 0.0);
                 wsum += w;
             }
+        // Catmull-Rom history colour (u_history_filter = 1): the bilinear resample blurs the
+        // history a little every frame the camera moves, and a long average accumulates it (a
+        // lit edge smears into its dark neighbour and stays there as a lag). Used only where all
+        // 4x4 taps are finite and on this surface (else the bilinear taps above); negative lobes
+        // are clamped by the clip below and the final max(0).
+        if (u_history_filter == 1 && wsum > 0.999) {
+            vec4 cx = catmull_rom_weights(f.x), cyw = catmull_rom_weights(f.y);
+            vec3 cr = vec3(0.0);
+            bool ok = true;
+            for (int j = -1; j <= 2 && ok; ++j)
+                for (int i = -1; i <= 2; ++i) {
+                    ivec2 t = b + ivec2(i, j);
+                    if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, size))) { ok = false; break; }
+                    vec4 h = texelFetch(u_hist, t, 0);
+                    vec4 hp = texelFetch(u_hist_pos, t, 0);
+                    if (!(finite4(h) && finite4(hp)) || h.a < 1.0
+                        || (surf ? (hp.w < 0.5 || plane_pixels(P, N, hp.xyz) > 2.0) : hp.w > 0.5)) { ok = false; break; }
+                    cr += cx[i + 1] * cyw[j + 1] * max(h.rgb, vec3(0.0));
+                }
+            if (ok) hc = wsum * max(cr, vec3(0.0));  // hc is divided by wsum below
+        }
     }
     vec3 outc;
     float len, om2, clipped = 0.0;
@@ -152,12 +185,12 @@ void main() {
         hc /= wsum;
         hlen /= wsum;
         hm2 /= wsum;
-        len = min(hlen + 1.0, max(u_max_history, 1.0));
+        len = min(min(hlen, u_len_cap) + 1.0, max(u_max_history, 1.0));
         // young history (running mean, weight 1/len per frame): the wider 5x5 filter, so a
         // disoccluded pixel's early frames do not leave their noise in it for the next ~10 frames
         vec3 bm = m1, bs = sig;
         vec3 curf = cur;
-        if (u_input_filter == 1) curf = filtered_input(px, size, surf, P, N, len <= u_young ? 2 : 1, bm, bs);
+        if (u_input_filter == 1) curf = filtered_input(px, size, surf, P, N, len <= u_young ? 2 : u_radius, bm, bs);
         vec3 hy = rgb2ycocg(hc);
         float sig_t = sqrt(max(hm2 - hy.x * hy.x, 0.0));
         vec3 e = u_gamma * max(bs, vec3(sig_t));

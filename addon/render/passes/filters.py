@@ -203,17 +203,24 @@ class TAAPass(_FilterPass):
                 Res("taa.aux", history=True, check="finite"),
                 Res("taa.pos", history=True, check="finite"),
                 Res("taa.debug", check="radiance"))
-    # lighting edits restart the history: on 1-spp input the clip box is too wide to catch a
-    # moving sun (measured without the reset: flicker 0.61x Cycles' but the relit region still
-    # 3.4x the still level 8 frames after the stop; docs/techniques/TAA.md)
-    history_resets = FILTER_RESETS
+    # A light edit does not restart the history (a restart left one filtered 1-spp frame per
+    # frame of a moving sun: flicker 3.5x Cycles'); it caps the history length at
+    # light_history (2: the current frame weighs >= 1/3), so the relit region follows within a
+    # few frames (without the cap it lagged 3.4x the still level 8 frames after the stop).
+    # Numbers: docs/techniques/TAA.md.
+    history_resets = FILTER_RESETS - {"lights"}
     params = (
         Param("alpha", 0.1, 0.01, 1.0, "least weight of the current frame (1/history length until then)"),
-        Param("gamma", 1.25, 0.25, 4.0, "clip box: 3x3 mean ± gamma x max(spatial, temporal sigma)"),
+        Param("gamma", 1.25, 0.25, 4.0, "clip box: window mean ± gamma x max(spatial, temporal sigma)"),
         Param("max_history", 32, 1, 1024, "history length cap (debug view: length / max_history)"),
         Param("input_filter", 1, 0, 1, "1: blend the same-surface binomial of this frame's samples (Karis' "
-              "reconstruction filter; 5x5 while the history is young, else 3x3); 0: the pixel's own sample"),
-        Param("young", 8.0, 0.0, 1024.0, "history length up to which the input filter is 5x5"),
+              "reconstruction filter, see radius/young); 0: the pixel's own sample"),
+        Param("radius", 2, 1, 2, "input filter radius once the history is older than young (1: 3x3, 2: 5x5)"),
+        Param("young", 8.0, 0.0, 1024.0, "history length up to which the input filter is 5x5 whatever radius"),
+        Param("history_filter", 1, 0, 1, "history resampling: 1 Catmull-Rom (4x4 taps, where all are on the "
+              "pixel's surface; else bilinear), 0 bilinear"),
+        Param("light_history", 2, 0, 1024, "a light edit caps the history length at this (0: restarts the "
+              "history)"),
     )
     quality_ladder = ({"alpha": 0.2}, {"alpha": 0.1}, {"alpha": 0.1, "gamma": 1.0}, {"alpha": 0.05, "gamma": 1.0})
 
@@ -226,12 +233,18 @@ class TAAPass(_FilterPass):
                           ("u_hist_pos", "taa.pos@prev"), ("u_gb_motion", MOTION), ("u_gb_position", POSITION),
                           ("u_gb_normal", NORMAL)):
             units.tex(prog, uni, res[name])
-        set_uniform(prog, "u_reset", 0 if (self.history_valid and not frame.camera_cut) else 1)
+        # light edits: restart (light_history 0) or cap the history length (below)
+        light_reset = "lights" in frame.scene_edits and int(self["light_history"]) <= 0
+        set_uniform(prog, "u_reset", 0 if (self.history_valid and not frame.camera_cut and not light_reset) else 1)
         set_uniform(prog, "u_alpha", float(self["alpha"]))
         set_uniform(prog, "u_gamma", float(self["gamma"]))
         set_uniform(prog, "u_max_history", float(self["max_history"]))
         set_uniform(prog, "u_input_filter", int(self["input_filter"]))
         set_uniform(prog, "u_young", float(self["young"]))
+        set_uniform(prog, "u_history_filter", int(self["history_filter"]))
+        set_uniform(prog, "u_radius", int(self["radius"]))
+        soft = "lights" in frame.scene_edits and int(self["light_history"]) > 0
+        set_uniform(prog, "u_len_cap", float(self["light_history"]) if soft else 1e9)
         for unit, name in enumerate(("taa.history", "taa.aux", "taa.pos", "taa.debug")):
             res[name].bind_to_image(unit, read=False, write=True)
         self._run(rc, prog)
