@@ -1,9 +1,10 @@
 // lpv_inject.geom — routes a VPL (or a surfel) to its cells: one point per target cell,
 // gl_Layer = the layer of the 2D-array target.
 // Light (default): a Lambertian VPL of flux Φ is the intensity Φ/π·max(0, n·ω) (W/sr),
-// projected on 2-band SH, splatted trilinearly over the cell centres around p + ½ cell · n
-// that lie in front of its surface (LPV_SPLAT_NEAREST: added to the one cell containing
-// that point, the first version), in the slab A_c of
+// projected on 2-band SH, added to the one cell containing p + ½ cell · n
+// (LPV_SPLAT_NEAREST, the default: passes/lpv.py trilinear_injection False) or splatted
+// trilinearly over the cell centres around that point in front of its surface (it can
+// splat through a thin wall sideways), in the slab A_c of
 // every cascade whose membership box holds p, and in the ring slab R_c of the cascade
 // whose box holds p while the next finer one does not (lpv_common.glsl).
 // LPV_GV (cascade u_only_cascade): the surfel's blocking of the flux crossing between two

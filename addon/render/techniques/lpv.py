@@ -14,7 +14,7 @@ See docs/techniques/LPV.md.
 | cascades | 1–4 | nested cascades, cell size doubling |
 | cell_size | 0–100 | finest cell size (0 = the coarsest cascade covers the scene) |
 | geometry_volume | bool | fuzzy occlusion by the RSM and G-buffer surfels |
-| trilinear_injection | bool | splat each VPL over its 8 cells (False: the one containing it) |
+| trilinear_injection | bool | splat each VPL over its 8 cells (off: it leaks through thin walls) |
 | soft_cascades | bool | a VPL's share in a cascade ramps over 2 cells at its border |
 | geometry_rays | 0–4 | N×N rays per staggered cell add the triangles' blockers (0: off) |
 | geometry_surfels | bool | blockers from the surfels (False with rays: rays only) |
