@@ -179,7 +179,7 @@ def sweep(o, out):
     for scene in o.scenes.split(","):
         dst = os.path.join(out, scene)
         cmd = [sys.executable, os.path.join(HERE, "gi_compare.py"), scene, "--techniques", "DIRECT,VXGI",
-               "--quality", "all", "--res", str(o.sweep_res), "--ref-spp", str(o.sweep_ref_spp),
+               "--quality", ",".join(map(str, o.qualities)), "--res", str(o.sweep_res), "--ref-spp", str(o.sweep_ref_spp),
                "--samples", str(o.samples), "--frames", "2", "--baselines", "cycles", "--out", dst]
         print(" ".join(cmd), flush=True)
         subprocess.run(cmd, check=True, env=env)
@@ -245,7 +245,7 @@ def main(argv=None):
     for s in ("accuracy", "leak", "stability", "sweep"):
         p.add_argument(f"--{s}", action="store_true")
     p.add_argument("--res", type=int, default=48)
-    p.add_argument("--qualities", default="0,1,2,3", help="quality levels of --accuracy (--leak: those <= 1)")
+    p.add_argument("--qualities", default="0,1,2,3", help="quality levels of --accuracy and --sweep (--leak: those <= 1)")
     p.add_argument("--ref-spp", type=int, default=128)
     p.add_argument("--samples", type=int, default=4)
     p.add_argument("--scenes", default=",".join(DEMOS))
