@@ -30,7 +30,7 @@ Compared with Cycles "one_bounce" (and "full"). See docs/techniques/SSDO.md.
 | max_history | 1–1024 | temporal frames averaged at most |
 
 Quality ladder (samples, radius, scale, world_rays, world_tile, blur): 0 = 4, 1.0, 0.5, 0, -, 3;
-1 = 8, 1.5, 1, 1, 2, 2; 2 = 16, 2.0, 1, 1, 2, 2; 3 = 32, 2.5, 1, 1, 1, 1.
+1 = 8, 1.5, 1, 1, 8, 2; 2 = 16, 2.0, 1, 1, 4, 2; 3 = 32, 2.5, 1, 1, 2, 1.
 """
 from __future__ import annotations
 
@@ -68,9 +68,9 @@ class SSDOPass(AOPass):
               "(rounded down to 1, 2, 4 or 8)"),
     )
     quality_ladder = ({"samples": 4, "radius": 1.0, "scale": 0.5, "world_rays": 0},
-                      {"samples": 8, "radius": 1.5, "scale": 1.0, "world_rays": 1, "world_tile": 2},
-                      {"samples": 16, "radius": 2.0, "scale": 1.0, "world_rays": 1, "world_tile": 2},
-                      {"samples": 32, "radius": 2.5, "scale": 1.0, "world_rays": 1, "world_tile": 1})
+                      {"samples": 8, "radius": 1.5, "scale": 1.0, "world_rays": 1, "world_tile": 8},
+                      {"samples": 16, "radius": 2.0, "scale": 1.0, "world_rays": 1, "world_tile": 4},
+                      {"samples": 32, "radius": 2.5, "scale": 1.0, "world_rays": 1, "world_tile": 2})
 
     def __init__(self, quality=None, **kw):
         super().__init__(quality, **kw)
