@@ -78,6 +78,11 @@ def main(argv=None):
                    "(e.g. 0,1000,2000); relMSE vs one_bounce per offset for --scenes/--techniques/--quality")
     p.add_argument("--same-run", default="", help="a commit (or a tree with addon/ and shaders/) timed against "
                    "this working tree in one run, renders interleaved (see same_run)")
+    p.add_argument("--profile", action="store_true", help="with --same-run: per-pass CPU times (ctx.finish() "
+                   "around every pass, median over the accumulated frames) instead of the GL timer queries, "
+                   "which llvmpipe answers only for rasterised work (compute passes read 0.0 ms)")
+    p.add_argument("--repeats", type=int, default=1, help="with --same-run: render every technique/level this "
+                   "many times per tree (alternating), entries keep every repeat")
     p.add_argument("--worker", default="", help=argparse.SUPPRESS)  # same_run's child: a tree to render with
     opts = p.parse_args(argv)
     if opts.worker:
@@ -433,6 +438,7 @@ def seeds(opts):
 
 
 SAME_RUN_JSON = os.path.join(REPO, "docs", "results", "screen_space_same_run.json")
+PROFILE_JSON = os.path.join(REPO, "docs", "results", "screen_space_profile.json")
 
 
 def worker(tree: str):
@@ -457,6 +463,7 @@ def worker(tree: str):
     from gi_preview.render import session
 
     sc = sd = None
+    frames: list = []
 
     def reply(obj):
         sys.stdout.write("@@" + json.dumps(obj, default=float) + "\n")
@@ -472,15 +479,68 @@ def worker(tree: str):
             sd = export_scene(reference.evaluated_depsgraph(sc))
             reply({"scene": cmd["scene"]})
         elif "tech" in cmd:
+            if cmd.get("profile"):
+                install_pass_profiler(frames)
             session.render(sd, cmd["tech"], int(cmd["q"]), 1)  # warm-up: shader compilation, uploads
+            frames.clear()
             t0 = time.perf_counter()
             res = session.render(sd, cmd["tech"], int(cmd["q"]), int(cmd["samples"]))
             wall = (time.perf_counter() - t0) * 1e3
             np.save(cmd["npy"], np.asarray(res.image, np.float32))
-            reply({"frame_ms": res.frame_ms, "accumulated_ms": wall, "samples": res.samples,
-                   "pass_ms": res.pass_ms, "load1": os.getloadavg()[0]})
+            r = {"frame_ms": res.frame_ms, "accumulated_ms": wall, "samples": res.samples,
+                 "pass_ms": res.pass_ms, "load1": os.getloadavg()[0]}
+            if cmd.get("profile"):
+                r["pass_ms"] = profile_medians(frames)
+                r["pass_ms_timer"] = res.pass_ms
+            reply(r)
         else:
             break
+
+
+def install_pass_profiler(frames: list):
+    """Per-pass CPU times that mean something on llvmpipe: its GL timer queries time only
+    rasterised work (a compute-only pass reads 0.0 ms, a pass with draws gets part of its
+    cost), so ``RenderResult.pass_ms`` cannot profile compute passes. Wraps
+    ``FrameGraph.execute`` (in this process) so every pass runs between two ``ctx.finish()``
+    and is timed with ``perf_counter``; each frame's ``{pass: ms}`` is appended to ``frames``.
+    The finishes serialise the frame, so use it for where the time goes, not for frame times."""
+    from gi_preview.render import framegraph
+
+    G = framegraph.FrameGraph
+    if getattr(G.execute, "_profiled", False):
+        G.execute._frames = frames
+        return
+    orig = G.execute
+
+    def execute(self, rc, frame, *, timers=True):
+        times = {}
+        for p in self._plan.active:
+            if not getattr(p.execute, "_profiled", False):
+                inner = p.execute
+
+                def timed(rc_, frame_, _inner=inner, _name=p.name):
+                    rc_.ctx.finish()
+                    t0 = time.perf_counter()
+                    _inner(rc_, frame_)
+                    rc_.ctx.finish()
+                    execute._times[_name] = (time.perf_counter() - t0) * 1e3
+
+                timed._profiled = True
+                p.execute = timed
+        execute._times = times
+        orig(self, rc, frame, timers=False)
+        execute._frames.append(dict(times))
+        return dict(times)
+
+    execute._profiled = True
+    execute._frames = frames
+    G.execute = execute
+
+
+def profile_medians(frames: list) -> dict:
+    """Median ms per pass over the profiled frames (``install_pass_profiler``)."""
+    names = {k for f in frames for k in f}
+    return {k: round(statistics.median(f.get(k, 0.0) for f in frames), 3) for k in sorted(names)}
 
 
 class _Worker:
@@ -545,8 +605,9 @@ def same_run(opts):
     dirty = [ln[3:] for ln in subprocess.run(["git", "-C", REPO, "status", "--porcelain", "--", "addon", "shaders"],
                                              capture_output=True, text=True).stdout.splitlines()]
     out = {"res": opts.res, "ref_spp": opts.ref_spp, "samples": opts.samples, "scenes": {}}
-    if os.path.exists(SAME_RUN_JSON):
-        with open(SAME_RUN_JSON) as f:
+    json_path = PROFILE_JSON if opts.profile else SAME_RUN_JSON  # profiled frames are serialised: own file
+    if os.path.exists(json_path):
+        with open(json_path) as f:
             old = json.load(f)
         if old.get("res") == opts.res and old.get("samples") == opts.samples:
             out["scenes"] = old.get("scenes", {})
@@ -575,35 +636,54 @@ def same_run(opts):
             k = 0
             for tech in techs:
                 for q in (levels if tech != "DIRECT" else [1]):
-                    order = ("before", "current") if k % 2 == 0 else ("current", "before")
-                    k += 1
-                    e = {}
-                    for side in order:
-                        path = os.path.join(npy, f"{scene_name}_{tech}_{q}_{side}.npy")
-                        try:
-                            r = workers[side].ask(tech=tech, q=q, samples=opts.samples, npy=path)
-                        except RuntimeError:
-                            raise
-                        img = np.load(path)
-                        rel = metrics.relmse(img, ref.image)
-                        sp = sweep.equal_error_speedup(rel, r["frame_ms"] * r["samples"],
-                                                       [(c["spp"], c["time_ms"], c["relmse"]) for c in curve])
-                        e[side] = {**r, "relmse": rel, "nonfinite": int((~np.isfinite(img)).sum()),
-                                   "speedup": sp["speedup"], "speedup_bound": sp["bound"]}
+                    reps = []
+                    for rep in range(max(1, opts.repeats)):
+                        order = ("before", "current") if k % 2 == 0 else ("current", "before")
+                        k += 1
+                        e = {}
+                        for side in order:
+                            path = os.path.join(npy, f"{scene_name}_{tech}_{q}_{side}.npy")
+                            r = workers[side].ask(tech=tech, q=q, samples=opts.samples, npy=path,
+                                                  profile=bool(opts.profile))
+                            img = np.load(path)
+                            rel = metrics.relmse(img, ref.image)
+                            sp = sweep.equal_error_speedup(rel, r["frame_ms"] * r["samples"],
+                                                           [(c["spp"], c["time_ms"], c["relmse"]) for c in curve])
+                            e[side] = {**r, "relmse": rel, "nonfinite": int((~np.isfinite(img)).sum()),
+                                       "speedup": sp["speedup"], "speedup_bound": sp["bound"]}
+                        reps.append(e)
+                        b, c = e["before"], e["current"]
+                        log(f"{scene_name} {tech} q{q}{f' repeat {rep + 1}' if opts.repeats > 1 else ''}: ms/frame "
+                            f"{b['frame_ms']:.1f} -> {c['frame_ms']:.1f}, relMSE {b['relmse']:.5f} -> "
+                            f"{c['relmse']:.5f}, speed-up {b['speedup']} -> {c['speedup']}")
+                        if opts.profile:
+                            names = list(dict.fromkeys([*b["pass_ms"], *c["pass_ms"]]))
+                            log("  per pass ms (before -> now): " + ", ".join(
+                                f"{n} {b['pass_ms'].get(n, 0.0):.1f}->{c['pass_ms'].get(n, 0.0):.1f}" for n in names))
+                    if len(reps) == 1:
+                        e = reps[0]
+                    else:  # the repeat with the median frame time per tree; every repeat kept
+                        e = {}
+                        for side in ("before", "current"):
+                            srt = sorted(reps, key=lambda x: x[side]["frame_ms"])
+                            e[side] = srt[len(srt) // 2][side]
+                        e["repeats"] = [{side: {kk: x[side][kk] for kk in ("frame_ms", "speedup", "speedup_bound",
+                                                                             "relmse")} for side in ("before", "current")}
+                                        for x in reps]
                     e["when"] = time.strftime("%H:%M UTC", time.gmtime())
                     entry["techniques"][f"{tech}_q{q}"] = e
-                    b, c = e["before"], e["current"]
-                    log(f"{scene_name} {tech} q{q}: ms/frame {b['frame_ms']:.1f} -> {c['frame_ms']:.1f}, relMSE "
-                        f"{b['relmse']:.5f} -> {c['relmse']:.5f}, speed-up {b['speedup']} -> {c['speedup']}")
             out["scenes"][scene_name] = entry
             import bpy
 
             bpy.data.scenes.remove(sc)
-            with open(SAME_RUN_JSON, "w") as f:
+            with open(json_path, "w") as f:
                 json.dump(out, f, indent=1, default=float)
     finally:
         for w in workers.values():
             w.close()
+    if opts.profile:
+        log(f"wrote {json_path}")
+        return out
     md = same_run_tables(out)
     with open(os.path.splitext(SAME_RUN_JSON)[0] + ".md", "w") as f:
         f.write(md)

@@ -46,16 +46,26 @@ Surface fetch_surface(ivec2 px, int mid) {
 // camera sees: its radiance is not known on screen, so that share falls back (the composite
 // keeps DIRECT's world reflection for it) instead of copying the camera's highlights to
 // the wrong place.
-float view_trust(GPixel h, ivec2 hp, vec3 Vr) {
+// view_trust in two halves: what depends on the pixel only (its diffuse share fd of the
+// radiance toward the camera, and the glossy lobe's angular width sigma), and the weight
+// for a receiver direction. SSDO evaluates the first half once per pixel into an image
+// (ssdo_trust.comp) instead of once per sample.
+vec2 trust_params(GPixel h, ivec2 hp) {
     Surface sh = fetch_surface(hp, h.mid);
-    vec3 Vc = view_dir(h.P);
-    float NoVc = max(dot(h.N, Vc), 1e-4);
+    float NoVc = max(dot(h.N, view_dir(h.P)), 1e-4);
     float kd = luminance(diffuse_albedo(sh, NoVc));
     float ks = luminance(specular_albedo(sh, NoVc));
-    float fd = kd / max(kd + ks, 1e-6);
-    float sigma = 2.0 * sh.alpha + 0.02;
+    return vec2(kd / max(kd + ks, 1e-6), 2.0 * sh.alpha + 0.02);
+}
+
+float trust_weight(vec2 fd_sigma, vec3 Vc, vec3 Vr) {
+    float fd = fd_sigma.x, sigma = fd_sigma.y;
     float ang = acos(clamp(dot(Vc, Vr), -1.0, 1.0));
     return fd + (1.0 - fd) * exp(-0.5 * ang * ang / (sigma * sigma));
+}
+
+float view_trust(GPixel h, ivec2 hp, vec3 Vr) {
+    return trust_weight(trust_params(h, hp), view_dir(h.P), Vr);
 }
 
 #endif

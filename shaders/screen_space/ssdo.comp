@@ -15,74 +15,50 @@
 // too, so the bounce from walls beyond the radius (a room's far side) is not lost.
 // Off screen (a sample, or the far-field march, left the screen: screen space does not know
 // what is there): with SSDO_WORLD one such direction per tile of u_world_tile^2 pixels and
-// frame is traced through the scene with the shared ray tracer (lib/scene_rt.glsl): a hit
-// sends its diffuse direct light toward the receiver (next-event estimation at the hit), a
-// miss is open; that radiance stands for the off-screen directions of every pixel of the
-// tile that faces like the tracer (the tracer rotates per frame; temporal accumulation and
-// the blur average them), shrunk towards the mean of the pixel's on-screen directions by
-// the share of them the screen knows. Without SSDO_WORLD (or at a tile edge) they are unknown: the
-// bounce is the mean over the directions the screen knows.
+// frame is traced through the scene: this pass picks the tile's tracer (rotating per frame)
+// and writes its ray (o_ray_o, o_ray_d); ssdo_trace.comp traces the rays (lib/scene_rt.glsl:
+// a hit sends its diffuse direct light toward the receiver, a miss is open) and
+// ssdo_resolve.comp lets that radiance stand for the off-screen directions of every pixel of
+// the tile that faces like the tracer, shrunk towards the mean of the pixel's on-screen
+// directions by the share of them the screen knows. Without SSDO_WORLD (or at a tile edge)
+// they are unknown: the bounce is the mean over the directions the screen knows.
 // Output (at u_scale of the full resolution): rgb = mean sender radiance over all samples,
-// a = cosine-weighted fraction of directions that stay open (the GI_AO AOV).
+// a = cosine-weighted fraction of directions that stay open (the GI_AO AOV). With
+// SSDO_WORLD, a pixel with off-screen directions leaves the SUM of its known senders'
+// radiance in rgb and its counts in o_part (off-screen, unknown) for ssdo_resolve.comp.
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/rng.glsl"
 #include "lib/sampling.glsl"
 #include "lib/brdf.glsl"
 #include "lib/screen.glsl"
-#ifdef SSDO_WORLD
-#include "lib/lights.glsl"
-#include "lib/scene_rt.glsl"
-#endif
 #include "screen_space/common.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, rgba16f) uniform writeonly image2D o_ssdo;
 
 uniform sampler2D u_radiance;  // direct-lit colour (aov.direct)
+uniform sampler2D u_trust;     // per sender pixel (fd, sigma) of view_trust (ssdo_trust.comp)
 uniform int u_samples;
 uniform float u_radius;
 uniform float u_bias;
 
 #ifdef SSDO_WORLD
 uniform int u_world_tile;  // pixels per side of the tile that shares one traced direction
-uniform float u_world_distance;
-
-// A direction screen space cannot answer (its sample or far-field march left the screen),
-// traced through the scene with the shared ray tracer: true with the diffuse radiance the
-// surface it hits sends back along it (next-event estimation at the hit, lib/scene_rt.glsl's
-// shade_direct_at: one light, one shadow ray), false = open (the world, which DIRECT
-// already lights with). Diffuse only, as for on-screen senders (view_trust): a glossy hit's
-// light toward the receiver is a caustic path, which one light sample per ray turns into
-// fireflies (glossy_spheres q2: relMSE 0.037 -> 0.080 with it). The surface is made
-// diffuse-only: base colour times (1 - metallic) (1 - its dielectric layer's albedo), the
-// diffuse lobe eval_principled gives.
-bool world_sender(vec3 O, vec3 dir, inout Rng rng, out vec3 L) {
-    SurfaceHit s;
-    L = vec3(0.0);
-    if (!scene_trace(O, dir, 0.0, u_world_distance, s)) return false;
-    vec3 V = -dir, Nh, Ngh, ph;
-    surface_frame(s, V, Nh, Ngh, ph);
-    Surface d = s.bsdf;
-    float layer = (d.f0 > 1e-6 && d.metallic < 1.0) ? dielectric_layer_albedo(d, max(dot(Nh, V), 1e-4)) : 0.0;
-    d.base_color *= (1.0 - d.metallic) * (1.0 - layer);
-    d.metallic = 0.0;
-    d.f0 = 0.0;
-    L = shade_direct_at(d, ph, Nh, Ngh, V, rng, false);
-    return true;
-}
+layout(binding = 1, rgba32f) uniform writeonly image2D o_ray_o;  // per tile: origin, tracer pixel
+layout(binding = 2, rgba32f) uniform writeonly image2D o_ray_d;  // per tile: direction, 1 = traced
+layout(binding = 4, rg16f) uniform writeonly image2D o_part;     // per pixel: off-screen, unknown
 #endif
 
 #ifdef SSDO_WORLD
 // One traced direction per tile of u_world_tile x u_world_tile pixels (a power of two <= 8,
 // so tiles never straddle the 8x8 group): among the tile's pixels that have off-screen
 // directions, the one first in a per-frame rotated order traces its first one; its result
-// (the radiance sent back, 0 for a miss) stands for the mean off-screen radiance of every
-// pixel of the tile whose normal is close to the tracer's. The rotation makes every pixel
-// trace in turn, so SSDO's temporal accumulation sees a different direction each frame.
+// (the radiance sent back, 0 for a miss; ssdo_trace.comp) stands for the mean off-screen
+// radiance of every pixel of the tile whose normal is close to the tracer's (ssdo_resolve.comp).
+// The rotation makes every pixel trace in turn, so SSDO's temporal accumulation sees a
+// different direction each frame.
 shared int s_pick[64];
-shared vec4 s_L[64];      // rgb = traced radiance, a = 1 when traced
-shared vec3 s_N[64];
 #endif
 
 void main() {
@@ -142,7 +118,8 @@ void main() {
             // blocked: the hiding pixel sends its direct-lit radiance if it faces P
             vec3 toP = g.P - h.P;
             if (dot(h.N, toP) > 0.0)
-                bounce += texelFetch(u_radiance, hp, 0).rgb * view_trust(h, hp, normalize(toP));
+                bounce += texelFetch(u_radiance, hp, 0).rgb *
+                          trust_weight(texelFetch(u_trust, hp, 0).rg, view_dir(h.P), normalize(toP));
         } else {
             // open within the radius: march further (far field); a surface met there is
             // the sender, otherwise the direction stays open
@@ -161,7 +138,8 @@ void main() {
                 GPixel f = fetch_g(fp);
                 vec3 toP = g.P - f.P;
                 if (dot(f.N, toP) > 0.0)
-                    bounce += texelFetch(u_radiance, fp, 0).rgb * view_trust(f, fp, normalize(toP));
+                    bounce += texelFetch(u_radiance, fp, 0).rgb *
+                              trust_weight(texelFetch(u_trust, fp, 0).rg, view_dir(f.P), normalize(toP));
             }
         }
     }
@@ -179,34 +157,21 @@ void main() {
     memoryBarrierShared();
     barrier();
     int pick = s_pick[tile];
+    ivec2 tq = ivec2(gl_WorkGroupID.xy) * (8 / T) + lq / T;  // this tile in the tile grid
     if (needs && pick == rank) {
-        Rng wrng = rng_init(uvec2(px), u_sample, 29u);
-        vec3 Lw;
-        s_L[tile] = vec4(world_sender(O, wdir, wrng, Lw) ? Lw : vec3(0.0), 1.0);
-        s_N[tile] = N;
-    }
-    memoryBarrierShared();
-    barrier();
-    if (needs) {
-        // the tracer's radiance stands for this pixel's off-screen directions when the two
-        // face alike, shrunk towards the mean of this pixel's known (on-screen) directions by
-        // the share of its directions that are known: one traced ray per tile and frame is
-        // unbiased but noisy (a ray meeting the sun patch), the on-screen mean is smooth but
-        // stands for the off-screen directions only when most directions are known
-        // (sunlit_room q1/q2/q3 over 3 seeds 0.0130/0.0105/0.0113 -> 0.0116/0.0084/0.0099;
-        // bounce_room ceiling 0.071 -> 0.019); otherwise (an edge in the tile) they are
-        // unknown: the mean of the known
-        if (dot(N, s_N[tile]) > 0.8) {
-            float known = float(n) - wunknown - unknown;
-            vec3 mean_known = known > 0.0 ? bounce / known : s_L[tile].rgb;
-            bounce += wunknown * mix(s_L[tile].rgb, mean_known, known / float(n));
-        } else {
-            unknown += wunknown;
-        }
+        imageStore(o_ray_o, tq, vec4(O, float(px.x + 65536 * px.y)));
+        imageStore(o_ray_d, tq, vec4(wdir, 1.0));
+    } else if (lt == ivec2(0) && pick == 0x7fffffff) {
+        imageStore(o_ray_d, tq, vec4(0.0));  // no tracer in this tile
     }
     // GI_AO: an off-screen direction counts as open, whatever the trace met (the AO AOV's
     // meaning is the screen-space occlusion within the radius and the on-screen far field)
     open += wunknown;
+    if (inside) imageStore(o_part, q, vec4(live ? wunknown : 0.0, unknown, 0.0, 0.0));
+    if (inside && live && wunknown > 0.0) {  // ssdo_resolve.comp completes this pixel
+        imageStore(o_ssdo, q, vec4(bounce, open / float(n)));
+        return;
+    }
 #endif
     if (!inside) return;
     if (!live) { imageStore(o_ssdo, q, vec4(0.0, 0.0, 0.0, 1.0)); return; }

@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..framegraph import Effect, Param
+from ..framegraph import SHADER_IMAGE_ACCESS_BARRIER_BIT, TEXTURE_FETCH_BARRIER_BIT, Effect, Param, Res
 from ..gpu_scene import set_uniform
 from ..passes.gbuffer import GBufferPass
 from ..passes.screen_space import DIRECT_RADIANCE, Units, ao_chain, bind_frame, bind_gbuffer
@@ -75,33 +75,89 @@ class SSDOPass(AOPass):
     def __init__(self, quality=None, **kw):
         super().__init__(quality, **kw)
         self.reads = self.reads + (DIRECT_RADIANCE,)
+        # per-pixel half of the senders' view trust (ssdo_trust.comp), written by this pass's
+        # first dispatch at full resolution and read by the main one
+        self.trust = f"{self.prefix}.trust"
+        # world_rays: per tile the tracer's ray (origin + pixel, direction) and the radiance it
+        # brought back (ssdo_trace.comp), per pixel the counts ssdo_resolve.comp needs; tile
+        # images are indexed by tile and sized like the output (a tile grid is never larger)
+        self.ray_o, self.ray_d = f"{self.prefix}.ray_o", f"{self.prefix}.ray_d"
+        self.tile_l, self.part = f"{self.prefix}.tile_l", f"{self.prefix}.part"
+        self.writes = self.writes + (self.trust, self.ray_o, self.ray_d, self.tile_l, self.part)
+        self.declared = self.declared + (
+            Res(self.trust, components=2, dtype="f2"),
+            Res(self.ray_o, scale="scale"), Res(self.ray_d, scale="scale"),
+            Res(self.tile_l, dtype="f2", scale="scale", check="radiance"),
+            Res(self.part, components=2, dtype="f2", scale="scale"))
 
     def execute(self, rc, frame):
+        """Four dispatches, each depending on the previous one's image writes (barriers
+        between them): the senders' trust (full resolution), the screen-space samples (with
+        world_rays, also the tiles' rays and each pixel's counts), then with world_rays the
+        tiles' rays through the scene and the resolve. Cost, sunlit_room 96 px q1 on
+        llvmpipe: see docs/techniques/SSDO.md (timing)."""
+        res = rc.resources
+        tprog = self.program(rc, "screen_space/ssdo_trust.comp")
+        bind_frame(rc, tprog, frame)
+        bind_gbuffer(rc, tprog, Units(1))
+        res[self.trust].bind_to_image(1, read=False, write=True)
+        self.run(rc, tprog)
+        rc.ctx.memory_barrier(TEXTURE_FETCH_BARRIER_BIT)
+
         world_rays = int(self["world_rays"])
-        if world_rays > 0:  # off-screen directions traced through the scene (shared ray tracer)
-            rt = rc.scene.rt()
-            prog = rc.programs.compute(self.shader, {**rt.defines, "SSDO_WORLD": 1})
-            rt.bind(prog)
-        else:
-            prog = self.program(rc, self.shader)
+        prog = self.program(rc, self.shader, {"SSDO_WORLD": 1} if world_rays > 0 else None)
         bind_frame(rc, prog, frame)
         units = Units(1)
         bind_gbuffer(rc, prog, units)
-        units.tex(prog, "u_radiance", rc.resources[DIRECT_RADIANCE])
+        units.tex(prog, "u_radiance", res[DIRECT_RADIANCE])
+        units.tex(prog, "u_trust", res[self.trust])
         self.set_uniforms(prog)
         far = float(self["far_distance"])
         if far <= 0.0:
             lo, hi = rc.scene.scene.world_bounds()
             far = max(float(np.linalg.norm(np.asarray(hi) - np.asarray(lo))), 1e-3)
         set_uniform(prog, "u_far_distance", far)
-        if world_rays > 0:
-            tile = int(self["world_tile"])
-            set_uniform(prog, "u_world_tile", 8 if tile >= 8 else 4 if tile >= 4 else 2 if tile >= 2 else 1)
-            set_uniform(prog, "u_world_distance", far)
         set_uniform(prog, "u_far_points", int(self["far_points"]))
         size = self.out_size(rc)
-        rc.resources[self.writes[0]].bind_to_image(0, read=False, write=True)
+        out = res[self.writes[0]]
+        out.bind_to_image(0, read=False, write=True)
+        if world_rays <= 0:
+            self.run(rc, prog, size)
+            return
+        tile = int(self["world_tile"])
+        tile = 8 if tile >= 8 else 4 if tile >= 4 else 2 if tile >= 2 else 1
+        set_uniform(prog, "u_world_tile", tile)
+        res[self.ray_o].bind_to_image(1, read=False, write=True)
+        res[self.ray_d].bind_to_image(2, read=False, write=True)
+        res[self.part].bind_to_image(4, read=False, write=True)
         self.run(rc, prog, size)
+        rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT)
+
+        # the tiles' rays through the scene, side by side (shared ray tracer)
+        rt = rc.scene.rt()
+        trace = rc.programs.compute("screen_space/ssdo_trace.comp", rt.defines)
+        rt.bind(trace)
+        set_uniform(trace, "u_sample", int(frame.sample) & 0xFFFFFFFF)
+        gx, gy = self.groups(size)
+        tiles = (gx * 8 // tile, gy * 8 // tile)
+        set_uniform(trace, "u_tiles", tiles)
+        set_uniform(trace, "u_world_distance", far)
+        res[self.ray_o].bind_to_image(1, read=True, write=False)
+        res[self.ray_d].bind_to_image(2, read=True, write=False)
+        res[self.tile_l].bind_to_image(3, read=False, write=True)
+        self.run(rc, trace, tiles)
+        rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT)
+
+        resolve = self.program(rc, "screen_space/ssdo_resolve.comp")
+        bind_frame(rc, resolve, frame)
+        bind_gbuffer(rc, resolve, Units(1))
+        set_uniform(resolve, "u_samples", int(self["samples"]))
+        set_uniform(resolve, "u_world_tile", tile)
+        out.bind_to_image(0, read=True, write=True)
+        res[self.ray_o].bind_to_image(1, read=True, write=False)
+        res[self.tile_l].bind_to_image(3, read=True, write=False)
+        res[self.part].bind_to_image(4, read=True, write=False)
+        self.run(rc, resolve, size)
 
     def set_uniforms(self, prog):
         set_uniform(prog, "u_samples", int(self["samples"]))
