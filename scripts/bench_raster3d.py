@@ -7,6 +7,8 @@ leak, stability, lag.
         [--res 64] [--ref-spp 256] [--samples 8] [--baselines cycles,cycles_denoised,eevee]
         [--stability-frames 60] [--stability-quality 0,1,2,3] [--label L] [--set PASS.PARAM=V]
         [--out docs/results/raster3d]
+    .venv/bin/python scripts/bench_raster3d.py --lock-chunk 20 ...   (no outer flock: the script
+        takes /tmp/gi_heavy.lock itself and gives it up every 20 frames, see ``HeavyLock``)
     (--parts summary: only rewrite summary.md from the folders present)
 
 * ``compare``: scripts/gi_compare.py once per scene and technique (each quality level
@@ -46,6 +48,53 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
 
 
+class HeavyLock:
+    """The shared heavy-command lock (/tmp/gi_heavy.lock) taken by the script itself, for
+    runs longer than one lock turn (LPV q3: about 8 s per moving frame, 60 frames): the
+    process keeps its GL state (the technique's history) while it waits, and holds the lock
+    only while it renders. ``turn()`` gives it up for a moment every ``chunk`` frames so the
+    other waiting commands get their turn; the frames themselves are timed one by one, so
+    the pauses do not enter any measured time. ``chunk`` 0: no locking (the caller holds
+    the lock, e.g. ``flock /tmp/gi_heavy.lock ...``; taking it again here would deadlock)."""
+
+    def __init__(self, chunk: int, path: str = "/tmp/gi_heavy.lock"):
+        self.chunk, self.path, self.fd, self.count = int(chunk), path, None, 0
+
+    def acquire(self):
+        if self.chunk <= 0 or self.fd is not None:
+            return
+        import fcntl
+
+        self.fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o666)
+        t0 = time.perf_counter()
+        fcntl.flock(self.fd, fcntl.LOCK_EX)
+        self.count = 0
+        print(f"[lock] acquired after {time.perf_counter() - t0:.0f} s", flush=True)
+
+    def release(self):
+        if self.fd is None:
+            return
+        import fcntl
+
+        fcntl.flock(self.fd, fcntl.LOCK_UN)
+        os.close(self.fd)
+        self.fd = None
+
+    def frame(self, last: bool = False):
+        """Count one frame; every ``chunk`` frames give the lock up and wait for it again
+        (not after the ``last`` frame of a run: the rest is a few numpy lines)."""
+        if self.chunk <= 0 or last:
+            return
+        self.count += 1
+        if self.count >= self.chunk:
+            self.release()
+            time.sleep(3.0)  # let a waiting command take it (flock is not fair)
+            self.acquire()
+
+
+LOCK = HeavyLock(0)
+
+
 def _bpy_env():
     sys.path.insert(0, HERE)
     sys.path.insert(0, os.path.join(REPO, "blender_tests"))
@@ -66,7 +115,10 @@ def part_compare(o, rows):
     technique keeps each locked command short; the summary reads every folder present)."""
     for scene in o.scenes.split(","):
         for tech in o.techniques.split(","):
-            out = os.path.join(o.out, scene, tech)
+            # a subset of the levels (a scene too slow for one locked command) gets its own
+            # folder; the summary reads every folder of the scene
+            sub = tech if o.quality == "all" else f"{tech}_q{o.quality.replace(',', '')}"
+            out = os.path.join(o.out, scene, sub)
             cmd = [sys.executable, os.path.join(HERE, "gi_compare.py"), scene, "--techniques", tech,
                    "--quality", o.quality, "--res", str(o.res), "--ref-spp", str(o.ref_spp),
                    "--samples", str(o.samples), "--frames", str(o.frames), "--baselines", o.baselines,
@@ -267,7 +319,7 @@ def part_stability(o):
     runs = []
     for tech in o.techniques.split(","):  # DIRECT too: what the direct light alone changes
         for q in [int(x) for x in o.stability_quality.split(",")]:
-            ours, ind, ms, t0 = [], [], [], time.perf_counter()
+            ours, ind, gbs, ms, t0 = [], [], [], [], time.perf_counter()
             fin, mn = True, float("inf")
             for k in range(n):
                 move(sc, k, n)
@@ -276,6 +328,7 @@ def part_stability(o):
                     S.render(sd, tech, q, 1, keep_history=True, session="stab")
                     _set_props("stab", props)
                 res = S.render(sd, tech, q, 1, keep_history=True, session="stab")
+                LOCK.frame(last=k == n - 1)
                 img = res.image[..., :3]
                 fin &= bool(np.isfinite(img).all())
                 mn = min(mn, float(img.min()))
@@ -283,7 +336,16 @@ def part_stability(o):
                 ms.append(res.frame_ms)
                 if "GI_IndirectDiffuse" in res.aovs:
                     ind.append(res.aovs["GI_IndirectDiffuse"][..., :3])
+                gbs.append(np.concatenate([res.aovs["Normal"][..., :3], res.aovs["DiffCol"][..., :3]], -1))
             S.release_session("stab").result(timeout=60)
+            # where the steps come from, per frame: the pixels whose G-buffer surface changed
+            # (normal or diffuse colour: an edge crossed the pixel centre) against the rest,
+            # ours and Cycles' on the same pixels; and the direct part against the indirect one
+            edge = [np.abs(a - b).max(-1) > 0.05 for a, b in zip(gbs, gbs[1:])]
+            d_in = [float(np.abs(a - b).mean(-1)[~e].mean()) for a, b, e in zip(ours, ours[1:], edge)]
+            c_in = [float(np.abs(a - b).mean(-1)[~e].mean()) for a, b, e in zip(cyc, cyc[1:], edge)]
+            d_dir = ([float(np.abs((a - ia) - (b - ib)).mean()) for a, b, ia, ib in zip(ours, ours[1:], ind, ind[1:])]
+                     if ind else [])
             d = [float(np.abs(a - b).mean()) for a, b in zip(ours, ours[1:])]
             # the indirect pass alone: its change per frame and its second difference in time
             # (flicker: a smooth change has none)
@@ -298,12 +360,22 @@ def part_stability(o):
                  "indirect_change": float(np.mean(ind_d)) if ind_d else None,
                  "indirect_flicker": float(np.mean(ind_d2)) if ind_d2 else None,
                  "frame_ms": float(np.median(ms)), "wall_s": time.perf_counter() - t0,
-                 "diffs": [round(x, 6) for x in d]}
+                 "ratio_mean_no_edges": float(np.mean(d_in) / np.mean(c_in)),
+                 "ratio_max_no_edges": float(np.max(d_in) / np.max(c_in)),
+                 "max_no_edges_at": int(np.argmax(d_in)) + 1,
+                 "diffs": [round(x, 6) for x in d],
+                 "edge_px": [int(e.sum()) for e in edge],
+                 "diffs_no_edges": [round(x, 6) for x in d_in],
+                 "cycles_diffs_no_edges": [round(x, 6) for x in c_in],
+                 "direct_part_diffs": [round(x, 6) for x in d_dir],
+                 "indirect_diffs": [round(x, 6) for x in ind_d]}
             runs.append(r)
             print(f"stability {tech} q{q} [{r['label']}]: finite {fin}, min {mn:.3g}, frame-to-frame mean "
                   f"{r['mean']:.4f} ({r['ratio_mean']:.3f}x) max {r['max']:.4f} ({r['ratio_max']:.2f}x, frame "
                   f"{r['max_at']}); after frame 8 {r['ratio_mean_after8']:.3f}x / {r['ratio_max_after8']:.2f}x; "
                   f"indirect change {r['indirect_change'] or 0:.4f} flicker {r['indirect_flicker'] or 0:.4f}; "
+                  f"without the G-buffer-edge pixels {r['ratio_mean_no_edges']:.3f}x / {r['ratio_max_no_edges']:.2f}x "
+                  f"(frame {r['max_no_edges_at']}); "
                   f"Cycles mean {head['cycles']['mean']:.4f} max {head['cycles']['max']:.4f}; {r['frame_ms']:.0f} ms/frame, "
                   f"{r['wall_s']:.0f} s",
                   flush=True)
@@ -358,6 +430,7 @@ def part_lag(o):
                     S.render(sd, tech, q, 1, keep_history=True, session="lag")
                     _set_props("lag", props)
                 img = ind(S.render(sd, tech, q, 1, keep_history=True, session="lag"))
+                LOCK.frame(last=k == hold + after - 1)
                 if k >= hold:
                     share.append(float(np.sum((img - ta) * step) / max(np.sum(step * step), 1e-20)))
             S.release_session("lag").result(timeout=60)
@@ -395,8 +468,13 @@ def main(argv=None):
     p.add_argument("--cache", default=os.path.join("/tmp", "gi_bench_raster3d_cache"),
                    help="folder for the Cycles frames of the stability part (deterministic poses)")
     p.add_argument("--out", default=os.path.join(REPO, "docs", "results", "raster3d"))
+    p.add_argument("--lock-chunk", type=int, default=0,
+                   help="take /tmp/gi_heavy.lock here and give it up every N moving frames "
+                        "(stability, lag; run WITHOUT an outer flock); 0: the caller holds it")
     o = p.parse_args(argv)
     os.makedirs(o.out, exist_ok=True)
+    LOCK.chunk = o.lock_chunk
+    LOCK.acquire()
     _bpy_env()
     parts = o.parts.split(",")
     if "compare" in parts or "summary" in parts:
