@@ -64,6 +64,9 @@ float vx_voxel_size_at(vec3 p) {
 #ifdef VX_SAMPLING
 uniform sampler3D u_vx_radiance;
 uniform float u_vx_opacity_scale;  // opacity bias (>= 1 thickens occluders, against leaks)
+// a face whose weight d_k^2 is below this counts less than fully in the sample's opacity
+// (a cone running within ~18 degrees of a surface's plane is not stopped by it outright)
+#define VX_FACE_W_FULL 0.1
 
 // Radiance volume at p filtered over a footprint `diam` (world units), as seen by a cone
 // travelling along d (the light emitted towards -d): the three directional volumes facing
@@ -89,11 +92,15 @@ vec4 vx_sample(vec3 p, float diam, vec3 d, out float width) {
         // face f holds the light emitted towards +axis (f even) or -axis (f odd)
         ivec3 f = ivec3(d.x > 0.0 ? 1 : 0, d.y > 0.0 ? 3 : 2, d.z > 0.0 ? 5 : 4);
         vec4 r = vec4(0.0);
+        float amax = 0.0;
         for (int k = 0; k < 3; ++k) {
             if (w[k] < 1e-4) continue;
             float slab = float(f[k] * u_vx_cascades + c);
-            r += w[k] * textureLod(u_vx_radiance, vec3(l.xy, (slab + l.z) / slabs), lod);
+            vec4 t = textureLod(u_vx_radiance, vec3(l.xy, (slab + l.z) / slabs), lod);
+            r += w[k] * t;
+            amax = max(amax, t.a * min(1.0, w[k] / VX_FACE_W_FULL));
         }
+        if (r.a > 1e-6) r = vec4(r.rgb / r.a, 1.0) * amax;
         return r;
     }
     return vec4(0.0);

@@ -44,6 +44,7 @@ uniform int u_mesh_exact_max;
 uniform uint u_sample;
 uniform int u_directional_opacity;  // level-0 opacity towards D: |n.D| (else 1)
 uniform float u_edge_opacity;       // smallest level-0 opacity of an occupied voxel (directional opacity)
+uniform float u_audit;              // > 0: energy audit, both sides of every surface show this radiance
 #define VX_SIDE_CUT 0.5              // voxels: a record whose centre lies further off its plane shows one side
 
 // Visibility of the light from the RSM view v (sun) for the surface side at ps (already
@@ -193,8 +194,13 @@ void main() {
         vec3 n = nl > 1e-3 * float(count) ? nsum / nl : FACE_DIR[b];
         vec3 p = centre - n * (dist * vs);  // the bucket's surface point nearest the centre
         vec3 Ep = vec3(0.0), Em = vec3(0.0);
-        for (int li = 0; li < u_light_count; ++li) light_irradiance(li, p, n, vs, rng, Ep, Em);
-        if (u_gather == 1) {
+        if (u_audit > 0.0) {
+            Ep = Em = vec3(PI * u_audit);  // with rho = 1 below: L = u_audit on both sides
+            rho = vec3(1.0);
+        } else {
+            for (int li = 0; li < u_light_count; ++li) light_irradiance(li, p, n, vs, rng, Ep, Em);
+        }
+        if (u_gather == 1 && u_audit <= 0.0) {
             float vis;
             Ep += vx_diffuse_cones(p + n * off, n, vs, u_max_distance, u_step, rot, u_world, float(u_bounce), vis, off);
             Em += vx_diffuse_cones(p - n * off, -n, vs, u_max_distance, u_step, rot, u_world, float(u_bounce), vis, off);

@@ -29,6 +29,7 @@ uniform float u_step;
 uniform float u_max_distance;
 uniform float u_min_tan;
 uniform int u_specular;
+uniform float u_audit;  // > 0: energy audit: GI_IndirectDiffuse = E / pi (albedo 1)
 
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
@@ -54,7 +55,7 @@ void main() {
     float vis = 1.0;
     vec3 E = vec3(0.0);
     if (max3(kd) > 0.0) E = vx_diffuse_cones(o, N, vs, u_max_distance, u_step, rot, vec3(0.0), 1.0, vis, u_normal_offset * vs);
-    vec3 diffuse = kd * E * INV_PI;
+    vec3 diffuse = (u_audit > 0.0 ? vec3(1.0) : kd) * E * INV_PI;
     vec3 glossy = vec3(0.0);
     if (u_specular == 1 && max3(ks) > 1e-4) {
         vec3 R = reflect(-V, N);

@@ -221,8 +221,10 @@ CONE_PARAMS = (
     Param("max_distance", 0.0, 0.0, 1e4, "cone length (0 = the coarsest cascade's side)"),
     Param("opacity_scale", 1.0, 1.0, 4.0, "opacity bias: voxel opacity x this (against leaks)"),
     Param("side_angle", 60.0, 20.0, 70.0, "angle of the five side cones from the normal (degrees)"),
-    Param("footprint_cap", 1.0, 0.0, 4.0, "diffuse cones' footprint diameter <= this x the sample's height "
+    Param("footprint_cap", 0.35, 0.0, 4.0, "diffuse cones' footprint diameter <= this x the sample's height "
           "over the receiver's plane (0 = off): coarse mips never reach back over the receiver's own surface"),
+    Param("audit_radiance", 0.0, 0.0, 1e3, "energy audit (tests): > 0 = both sides of every voxelised surface "
+          "show this radiance (no lights, no bounce) and GI_IndirectDiffuse holds E/pi (albedo 1); 0 = off"),
 )
 
 
@@ -239,7 +241,7 @@ class VoxelInjectPass(Pass):
         Param("mesh_exact_max", 64, 0, 256, "emissive meshes up to this many triangles are integrated exactly"),
         Param("directional_opacity", True, doc="level-0 opacity towards each direction = the surface's "
               "projected coverage |n.D|, at least edge_opacity (else 1: opaque from every side)"),
-        Param("edge_opacity", 0.3, 0.0, 1.0, "smallest level-0 opacity of an occupied voxel towards any "
+        Param("edge_opacity", 0.1, 0.0, 1.0, "smallest level-0 opacity of an occupied voxel towards any "
               "direction (an edge-on surface shows black at this opacity; against leaks)"),
     )
     # the voxels' own gather (multi-bounce, sky) steps a whole cone diameter: it runs for
@@ -304,6 +306,7 @@ class VoxelInjectPass(Pass):
         set_uniform(prog, "u_edge_opacity", float(self["edge_opacity"]))
         set_uniform(prog, "u_vx_cap", float(self["footprint_cap"]))
         set_uniform(prog, "u_vx_side_angle", float(np.radians(self["side_angle"])))
+        set_uniform(prog, "u_audit", float(self["audit_radiance"]))
         set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
         res[VOXELS].bind_to_storage_buffer(BINDING_RECORDS)
         self.voxelize.list.bind_to_storage_buffer(BINDING_LIST)
@@ -389,6 +392,7 @@ class VoxelTracePass(Pass):
         set_uniform(prog, "u_vx_side_angle", float(np.radians(self["side_angle"])))
         set_uniform(prog, "u_specular", 1 if self["specular"] else 0)
         set_uniform(prog, "u_vx_cap", float(self["footprint_cap"]))
+        set_uniform(prog, "u_audit", float(self["audit_radiance"]))
         res[COLOR].bind_to_image(0, read=True, write=True)
         res[DIFFUSE].bind_to_image(1, read=False, write=True)
         res[GLOSSY].bind_to_image(2, read=False, write=True)
