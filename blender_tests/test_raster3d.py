@@ -24,6 +24,8 @@ Measured numbers are printed by each test and quoted on docs/techniques/RSM.md a
   the reason.
 * LPV's cascades are snapped to their cells (a sub-cell camera move shifts no grid) and
   nested; the propagation's face solid angles cover the sphere.
+* More lights than the RSM atlas's 24 views: whole lights, suns first then by power, and
+  the render's warnings say how many were injected.
 """
 from __future__ import annotations
 
@@ -285,3 +287,45 @@ def test_lpv_cascades_snapped_and_nested():
     for (o1, c), (o2, _c) in zip(a, b):
         d = (o2 - o1) / c
         assert np.allclose(d, np.round(d), atol=1e-4)
+
+
+def test_rsm_views_keep_whole_brightest_lights_and_say_what_is_left_out():
+    """More lights than the atlas's 24 views: whole lights only (no cube cut in the middle),
+    suns first, then by power, and the render's warnings say how many were injected (the
+    many_lights demo: 4 of 256; before, the view list was cut at 24 silently)."""
+    from gi_preview.render.passes.rsm import MAX_RSM_VIEWS, rsm_views
+    from gi_preview.render.scene_data import Light, LightType
+
+    def point(x, power):
+        m = np.eye(4)
+        m[:3, 3] = (x, 0.0, 1.0)
+        return Light(name=f"p{power}", type=LightType.POINT, matrix=m, color=np.full(3, power, np.float32),
+                     power=power)
+
+    class Sc(_Scene):
+        camera = None
+        lights = [point(0.0, 1.0), point(0.5, 5.0), point(-0.5, 3.0), point(1.0, 2.0), point(-1.0, 4.0),
+                  Light(name="sun", type=LightType.SUN, matrix=np.eye(4), color=np.ones(3, np.float32), power=1.0)]
+
+    views = rsm_views(Sc(), 32, 0.0)
+    order = [v["light"] for v in views]
+    assert len(views) <= MAX_RSM_VIEWS
+    # the sun (1 view), then the brightest points with all 6 faces each: 5 W, 4 W, 3 W
+    assert order == [5] + [1] * 6 + [4] * 6 + [2] * 6, order
+    # end to end: the Cornell box with 4 more point lights (5 x 6 faces > 24 views)
+    sc = demo_scenes.build_demo("cornell", resolution=16)
+    try:
+        for k in range(4):
+            ld = bpy.data.lights.new(f"extra_{k}", "POINT")
+            ld.energy = 10.0
+            ob = bpy.data.objects.new(f"extra_{k}", ld)
+            ob.location = (-0.5 + 0.3 * k, 0.0, 1.5)
+            sc.collection.objects.link(ob)
+        res = session.render(_export(sc), "RSM", 0, 1, session="raster3d_views")
+        notes = [w for w in res.warnings if w.startswith("RSM:")]
+        print(notes)
+        assert notes and "4 of 5 shadow-casting lights injected" in notes[0], res.warnings
+        assert np.isfinite(res.image).all()
+    finally:
+        session.release_session("raster3d_views")
+        bpy.data.scenes.remove(sc)

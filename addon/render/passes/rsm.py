@@ -123,46 +123,56 @@ class RSMViews:
 
 
 def rsm_views(scene, res: int, sun_extent: float, max_views: int = MAX_RSM_VIEWS) -> list[dict]:
-    """The views of every shadow-casting light (see the module docstring)."""
+    """The views of the shadow-casting lights (see the module docstring), at most
+    ``max_views``: whole lights only, suns first, then by power (largest first; ties keep
+    the scene's order), so a scene with more lights than the atlas holds injects its
+    brightest ones (``RSMPass.notes`` says how many)."""
     lo, hi = scene.world_bounds()
     lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
     center = 0.5 * (lo + hi)
     radius = max(float(np.linalg.norm(hi - lo)) * 0.5, 1e-3)
+    order = sorted(shadow_lights(scene), key=lambda i: (scene.lights[i].type != LightType.SUN,
+                                                        -float(scene.lights[i].power)))
     out = []
-    for li in shadow_lights(scene):
-        L = scene.lights[li]
-        if L.type == LightType.SUN:
-            d = L.direction.astype(np.float64)
-            c, r = center, radius
-            cam = scene.camera
-            if sun_extent > 0 and cam is not None and radius > sun_extent:
-                # over the camera's region: the scene box clipped to a box around the camera
-                cp = np.asarray(cam.position, np.float64)
-                blo, bhi = np.maximum(lo, cp - sun_extent), np.minimum(hi, cp + sun_extent)
-                if np.all(bhi > blo):
-                    c, r = 0.5 * (blo + bhi), max(float(np.linalg.norm(bhi - blo)) * 0.5, 1e-3)
-            eye = c - d * (2.0 * radius + r)
-            vp = ortho(r, 0.0, 4.0 * radius + 2.0 * r) @ look_at(eye, d, (0, 0, 1))
-            out.append({"vp": vp, "origin": eye, "ortho": 1.0, "fwd": d, "texel": 2.0 * r / res, "light": li})
-            continue
-        origin = np.asarray(L.position, np.float64)
-        far = float(np.linalg.norm(origin - center)) + radius * 1.01 + 1e-3
-        near = max(1e-3, far * 1e-4)
-        if L.type == LightType.SPOT and L.spot_size <= math.radians(120.0):
-            fov = min(math.radians(150.0), L.spot_size * 1.02 + math.radians(1.0))
-            d = L.direction.astype(np.float64)
-            vp = perspective(fov, near, far) @ look_at(origin, d, (0, 0, 1))
-            out.append({"vp": vp, "origin": origin, "ortho": 0.0, "fwd": d / np.linalg.norm(d),
-                        "texel": 2.0 * math.tan(fov / 2) / res, "light": li})
-            continue
-        fov = math.radians(90.0)  # exact cube: every direction in exactly one face
-        for fwd, up in CUBE_DIRS:
-            if L.type == LightType.AREA and float(np.dot(fwd, L.direction)) < -0.99:
-                continue  # a one-sided area light emits nothing into the face behind it
-            vp = perspective(fov, near, far) @ look_at(origin, fwd, up)
-            out.append({"vp": vp, "origin": origin, "ortho": 0.0, "fwd": np.asarray(fwd, np.float64),
-                        "texel": 2.0 / res, "light": li})
-    return out[:max_views]
+    for li in order:
+        lv = _light_views(scene.lights[li], li, res, sun_extent, scene.camera, lo, hi, center, radius)
+        if len(out) + len(lv) <= max_views:  # whole lights; a light with fewer views may still fit
+            out += lv
+    return out
+
+
+def _light_views(L, li, res, sun_extent, cam, lo, hi, center, radius) -> list[dict]:
+    """The RSM views of light ``L`` (index ``li``): see the module docstring."""
+    if L.type == LightType.SUN:
+        d = L.direction.astype(np.float64)
+        c, r = center, radius
+        if sun_extent > 0 and cam is not None and radius > sun_extent:
+            # over the camera's region: the scene box clipped to a box around the camera
+            cp = np.asarray(cam.position, np.float64)
+            blo, bhi = np.maximum(lo, cp - sun_extent), np.minimum(hi, cp + sun_extent)
+            if np.all(bhi > blo):
+                c, r = 0.5 * (blo + bhi), max(float(np.linalg.norm(bhi - blo)) * 0.5, 1e-3)
+        eye = c - d * (2.0 * radius + r)
+        vp = ortho(r, 0.0, 4.0 * radius + 2.0 * r) @ look_at(eye, d, (0, 0, 1))
+        return [{"vp": vp, "origin": eye, "ortho": 1.0, "fwd": d, "texel": 2.0 * r / res, "light": li}]
+    origin = np.asarray(L.position, np.float64)
+    far = float(np.linalg.norm(origin - center)) + radius * 1.01 + 1e-3
+    near = max(1e-3, far * 1e-4)
+    if L.type == LightType.SPOT and L.spot_size <= math.radians(120.0):
+        fov = min(math.radians(150.0), L.spot_size * 1.02 + math.radians(1.0))
+        d = L.direction.astype(np.float64)
+        vp = perspective(fov, near, far) @ look_at(origin, d, (0, 0, 1))
+        return [{"vp": vp, "origin": origin, "ortho": 0.0, "fwd": d / np.linalg.norm(d),
+                 "texel": 2.0 * math.tan(fov / 2) / res, "light": li}]
+    fov = math.radians(90.0)  # exact cube: every direction in exactly one face
+    out = []
+    for fwd, up in CUBE_DIRS:
+        if L.type == LightType.AREA and float(np.dot(fwd, L.direction)) < -0.99:
+            continue  # a one-sided area light emits nothing into the face behind it
+        vp = perspective(fov, near, far) @ look_at(origin, fwd, up)
+        out.append({"vp": vp, "origin": origin, "ortho": 0.0, "fwd": np.asarray(fwd, np.float64),
+                    "texel": 2.0 / res, "light": li})
+    return out
 
 
 class RSMPass(Pass):
@@ -188,6 +198,7 @@ class RSMPass(Pass):
         self.tex = None
         self.fbo = self.depth = None
         self.views = RSMViews()
+        self.notes: list[str] = []  # what this frame left out (the session reports it)
 
     def _ensure(self, rc, n: int, res: int):
         import moderngl
@@ -213,6 +224,9 @@ class RSMPass(Pass):
         scene = rc.scene.scene
         res = int(self["rsm_resolution"])
         views = rsm_views(scene, res, float(self["sun_extent"]))
+        n_lights, n_in = len(shadow_lights(scene)), len({v["light"] for v in views})
+        self.notes = ([f"RSM: {n_in} of {n_lights} shadow-casting lights injected (atlas of {MAX_RSM_VIEWS} views, "
+                       "brightest first); the others add no bounce"] if n_in < n_lights else [])
         cols = self._ensure(rc, len(views), res)
         self.views = RSMViews(views, cols, res)
         rc.resources[RSM_VIEWS] = self.views
