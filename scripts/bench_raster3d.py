@@ -29,6 +29,8 @@ leak, stability, lag.
   ``--stability-quality``, ``--label`` and ``--set PASS.PARAM=V`` name and configure a run;
   runs are merged into ``<out>/stability.json`` by (technique, quality, label). Cycles'
   frames are cached in ``--cache`` (the poses are deterministic).
+* ``variant``: a ``--set`` variant against the default on the demo scenes (relMSE vs the
+  cached one_bounce reference, mean ratio), ``<out>/variants.json``.
 * ``lag``: how many frames the bounce of a moved light takes to follow (camera still, the
   light moved 0.6 m in one step; the share of the way from the old indirect image to the
   new one per frame, 50 % / 90 % frames). ``<out>/lag.json``.
@@ -274,7 +276,8 @@ def _merge_runs(path, head, runs, key=("technique", "quality", "label")):
     new_keys = {tuple(r.get(k) for k in key) for r in runs}
     out = dict(head)
     out["runs"] = [r for r in old if tuple(r.get(k) for k in key) not in new_keys] + runs
-    out["runs"].sort(key=lambda r: (str(r.get("technique")), str(r.get("label")), r.get("quality", 0)))
+    out["runs"].sort(key=lambda r: (str(r.get("scene", "")), str(r.get("technique")), str(r.get("label")),
+                                    r.get("quality", 0)))
     with open(path, "w") as f:
         json.dump(out, f, indent=1)
 
@@ -448,6 +451,45 @@ def part_lag(o):
                                                    "step_m": 0.6}, runs)
 
 
+def part_variant(o):
+    """One parameter variant (``--set``, named ``--label``) of each technique on each demo
+    scene at ``--res``, ``--samples`` accumulated frames, against the scene's cached Cycles
+    one_bounce reference (``<out>/<scene>/<TECH>/reference_one_bounce.exr``, written by the
+    compare part): relMSE and mean ratio, default and variant rendered in the same run.
+    Merged into ``<out>/variants.json`` by (scene, technique, quality, label)."""
+    import bpy
+
+    from gi_preview.blender import demo_scenes, reference
+    from gi_preview.blender.export import export_scene
+    from gi_preview.compare import imageio, metrics
+    from gi_preview.render import session as S
+
+    reference.ensure_oiio()
+    props = _overrides(o)
+    qs = [int(x) for x in (o.stability_quality if o.quality == "all" else o.quality).split(",")]
+    runs = []
+    for scene in o.scenes.split(","):
+        sc = demo_scenes.build_demo(scene, resolution=o.res)
+        sd = export_scene(reference.evaluated_depsgraph(sc))
+        for tech in o.techniques.split(","):
+            ref = imageio.read_exr(os.path.join(o.out, scene, tech, "reference_one_bounce.exr"))[..., :3]
+            for q in qs:
+                for label, pr in (("default", {}), (o.label or "variant", props)):
+                    S.render(sd, tech, q, 1, session="variant", warmup=False)
+                    if pr:
+                        _set_props("variant", pr)
+                    img = S.render(sd, tech, q, o.samples, session="variant").image[..., :3]
+                    S.release_session("variant").result(timeout=60)
+                    r = {"scene": scene, "technique": tech, "quality": q, "label": label, "props": pr,
+                         "relmse": float(metrics.relmse(img, ref)), "mean_ratio": float(img.mean() / ref.mean())}
+                    runs.append(r)
+                    print(f"{scene} {tech} q{q} [{label}]: relMSE vs one_bounce {r['relmse']:.4f}, "
+                          f"mean {r['mean_ratio']:.3f}", flush=True)
+        bpy.data.scenes.remove(sc)
+    _merge_runs(os.path.join(o.out, "variants.json"), {"res": o.res, "samples": o.samples}, runs,
+                key=("scene", "technique", "quality", "label"))
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--parts", default="compare,leak,stability")
@@ -490,6 +532,8 @@ def main(argv=None):
         part_stability(o)
     if "lag" in parts:
         part_lag(o)
+    if "variant" in parts:
+        part_variant(o)
 
 
 if __name__ == "__main__":
