@@ -83,6 +83,8 @@ def main(argv=None):
                    "which llvmpipe answers only for rasterised work (compute passes read 0.0 ms)")
     p.add_argument("--repeats", type=int, default=1, help="with --same-run: render every technique/level this "
                    "many times per tree (alternating), entries keep every repeat")
+    p.add_argument("--thin-wall", action="store_true", help="DIRECT's dark-room mean in two_rooms "
+                   "(scenes_raster3d, 32 px, q0 and q1, 2 frames): the shadow maps' thin-wall leak")
     p.add_argument("--worker", default="", help=argparse.SUPPRESS)  # same_run's child: a tree to render with
     opts = p.parse_args(argv)
     if opts.worker:
@@ -94,6 +96,8 @@ def main(argv=None):
         print(tables(opts.tables, os.path.join(opts.out, "screen_space_results.json"), opts.before))
         return None
     _import_pkg()
+    if opts.thin_wall:
+        return thin_wall()
     if opts.repro:
         return repro(opts)
     if opts.motion:
@@ -439,6 +443,24 @@ def seeds(opts):
 
 SAME_RUN_JSON = os.path.join(REPO, "docs", "results", "screen_space_same_run.json")
 PROFILE_JSON = os.path.join(REPO, "docs", "results", "screen_space_profile.json")
+
+
+def thin_wall():
+    """two_rooms (blender_tests/scenes_raster3d.py): a point light in the left room, the camera
+    in the right room behind a zero-thickness wall, where Cycles' direct render is black.
+    Prints DIRECT's mean there at q1 and q0 (what shaders/lib/shadows.glsl's nearest-texel
+    test is for; test_direct_vs_cycles asserts q1)."""
+    sys.path.insert(0, os.path.join(REPO, "blender_tests"))
+    import scenes_raster3d
+    from gi_preview.blender import reference
+    from gi_preview.blender.export import export_scene
+    from gi_preview.render import session
+
+    sc = scenes_raster3d.build("two_rooms", 32)
+    sd = export_scene(reference.evaluated_depsgraph(sc))
+    out = {f"q{q}": float(session.render(sd, "DIRECT", q, 2).image[..., :3].mean()) for q in (1, 0)}
+    log("two_rooms DIRECT dark-room mean: " + ", ".join(f"{k} {v:.5f}" for k, v in out.items()))
+    return out
 
 
 def worker(tree: str):
