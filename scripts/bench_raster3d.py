@@ -31,6 +31,8 @@ leak, stability, lag.
   frames are cached in ``--cache`` (the poses are deterministic).
 * ``variant``: a ``--set`` variant against the default on the demo scenes (relMSE vs the
   cached one_bounce reference, mean ratio), ``<out>/variants.json``.
+* ``testmotion``: test_raster3d's six moves started at offsets 0/3/6 (whole image and
+  without the G-buffer-edge pixels), ``<out>/testmotion.json``.
 * ``lag``: how many frames the bounce of a moved light takes to follow (camera still, the
   light moved 0.6 m in one step; the share of the way from the old indirect image to the
   new one per frame, 50 % / 90 % frames). ``<out>/lag.json``.
@@ -490,6 +492,52 @@ def part_variant(o):
                 key=("scene", "technique", "quality", "label"))
 
 
+def part_testmotion(o):
+    """test_raster3d's six large moves (scenes_raster3d.move_light_and_camera, 32 px, q1,
+    Cycles 64 spp) started at offsets 0, 3 and 6: whole-image and interior (no
+    G-buffer-edge pixels) frame-to-frame ratios to Cycles', to judge the test's guard.
+    ``<out>/testmotion.json``."""
+    import bpy
+    import numpy as np
+
+    import scenes_raster3d
+    from gi_preview.blender import demo_scenes, reference
+    from gi_preview.blender.export import export_scene
+    from gi_preview.render import session as S
+
+    techs = [t for t in o.techniques.split(",") if t != "DIRECT"]
+    runs = []
+    for off in (0, 3, 6):
+        sc = demo_scenes.build_demo("cornell", resolution=32)
+        cyc, ours, gbs = [], {t: [] for t in techs}, {t: [] for t in techs}
+        for k in range(6):
+            scenes_raster3d.move_light_and_camera(sc, k + off)
+            sd = export_scene(reference.evaluated_depsgraph(sc))
+            cyc.append(reference.render_cycles(sc, 64, "one_bounce")[0][..., :3])
+            for i, tech in enumerate(techs):
+                res = S.render(sd, tech, 1, 1, keep_history=True, session=f"tm{i}")
+                ours[tech].append(res.image[..., :3])
+                gbs[tech].append(np.concatenate([res.aovs["Normal"][..., :3], res.aovs["DiffCol"][..., :3]], -1))
+        for i, tech in enumerate(techs):
+            S.release_session(f"tm{i}").result(timeout=60)
+            im, g = ours[tech], gbs[tech]
+            edge = [np.abs(a - b).max(-1) > 0.05 for a, b in zip(g, g[1:])]
+            d = [float(np.abs(a - b).mean()) for a, b in zip(im, im[1:])]
+            dc = [float(np.abs(a - b).mean()) for a, b in zip(cyc, cyc[1:])]
+            di = [float(np.abs(a - b).mean(-1)[~e].mean()) for a, b, e in zip(im, im[1:], edge)]
+            ci = [float(np.abs(a - b).mean(-1)[~e].mean()) for a, b, e in zip(cyc, cyc[1:], edge)]
+            r = {"technique": tech, "quality": 1, "label": f"offset {off}", "offset": off,
+                 "ratio_mean": float(np.mean(d) / np.mean(dc)), "ratio_max": float(max(d) / max(dc)),
+                 "ratio_mean_no_edges": float(np.mean(di) / np.mean(ci)),
+                 "ratio_max_no_edges": float(max(di) / max(ci)), "edge_px": [int(e.sum()) for e in edge]}
+            runs.append(r)
+            print(f"test motion offset {off} {tech}: {r['ratio_mean']:.3f}x / max {r['ratio_max']:.2f}x; without the "
+                  f"G-buffer-edge pixels {r['ratio_mean_no_edges']:.3f}x / {r['ratio_max_no_edges']:.2f}x; "
+                  f"edge px {r['edge_px']}", flush=True)
+        bpy.data.scenes.remove(sc)
+    _merge_runs(os.path.join(o.out, "testmotion.json"), {"res": 32, "cycles_spp": 64, "moves": 6}, runs)
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--parts", default="compare,leak,stability")
@@ -534,6 +582,8 @@ def main(argv=None):
         part_lag(o)
     if "variant" in parts:
         part_variant(o)
+    if "testmotion" in parts:
+        part_testmotion(o)
 
 
 if __name__ == "__main__":
