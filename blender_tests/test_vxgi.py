@@ -18,8 +18,9 @@ before in brackets):
 * sunlit_room vs "full": relMSE 0.067 (DIRECT 0.108) [0.138], mean ratio 1.08
   [1.36]: beats DIRECT (the acceptance); asserted relMSE < DIRECT's and ratio <= 1.25.
 * two_rooms: leak 0.016 of the lit room's mean (default) [0.027]; asserted: finite, in
-  [0, 1), default <= 0.025.
-* moving light and camera (6 frames): frame-to-frame mean |diff| asserted <= 1.25x Cycles'.
+  [0, 1), default <= 0.025 and below the undilated voxelisation's (0.036).
+* moving light and camera (6 frames, 1 sample each): frame-to-frame mean |diff| asserted <= 1.25x
+  Cycles' (the cones no longer rotate per frame by default: cone_rotation).
 Total 33.4 s for the file alone (26.4 s before; the audit adds 2.2 s).
 """
 from __future__ import annotations
@@ -149,6 +150,7 @@ def test_thin_wall_leak_is_measured():
         # 0.016 measured (0.027 before the max-face opacity, edge opacity 0.1 and cap 0.35;
         # 0.066 before orientation buckets and one-sided dilated voxels)
         assert leaks["default"] <= 0.025
+        assert leaks["default"] < leaks["unmitigated"]  # the dilation mitigates (0.015 vs 0.036)
     finally:
         bpy.data.scenes.remove(dark)
         bpy.data.scenes.remove(lit)
@@ -205,7 +207,7 @@ def test_moving_light_and_camera_no_flicker():
         for k in range(6):
             scenes_raster3d.move_light_and_camera(sc, k)
             sd = _export(sc)
-            res = session.render(sd, "VXGI", Q, 2, keep_history=True, session="vxgi_motion")
+            res = session.render(sd, "VXGI", Q, 1, keep_history=True, session="vxgi_motion")
             img = res.image[..., :3]
             assert np.isfinite(img).all(), f"frame {k}: non-finite"
             assert img.min() >= 0.0, f"frame {k}: negative {img.min()}"

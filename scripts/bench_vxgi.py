@@ -5,6 +5,10 @@
         [--accuracy] [--leak] [--stability] [--sweep] [--res 48] [--ref-spp 128] [--qualities 0,1,2,3]
         [--out docs/results/vxgi]
 
+* ``--audit``: energy audit (q0/q1 of --qualities): a white furnace in the voxel domain (a
+  closed box whose voxels show a known radiance L must give E = pi L) and the Cornell box's
+  indirect light per wall against Cycles' one-bounce / full indirect light, for the
+  default and with each loss-related parameter changed.
 * ``--accuracy``: cornell and sunlit_room, VXGI q0-q3 (multi-bounce on; off too at q0, q1) and DIRECT
   against Cycles "full" (the bounce-matched reference: VXGI with multi-bounce models every
   bounce): relMSE, mean over the reference's mean, frame and setup time.
@@ -18,7 +22,7 @@
 * ``--sweep``: scripts/gi_compare.py on every demo scene, DIRECT and VXGI at q0-q3 against
   the reference each models and "full" (relMSE, FLIP, time per frame, setup time,
   equal-error speed-up against Cycles' curve), into ``<out>/<scene>/``; ``<out>/sweep.md``.
-With no section flag, all four run. Results: ``<out>/bench.json`` and ``<out>/bench.md``.
+With no section flag, all five run. Results: ``<out>/bench.json`` and ``<out>/bench.md``.
 """
 from __future__ import annotations
 
@@ -96,13 +100,110 @@ def accuracy(o, out):
     return rows
 
 
+def _furnace_scene(res):
+    import bpy
+    from gi_preview.blender import demo_scenes
+
+    sc = bpy.data.scenes.new("bench_vxgi_furnace")
+    sc.render.resolution_x = sc.render.resolution_y = res
+    sc.render.resolution_percentage = 100
+    b = demo_scenes._Builder(sc, "bench_vxgi_furnace")
+    white = demo_scenes.make_principled(b.n("white"), (0.8, 0.8, 0.8), 1.0, specular=0.0)
+    b.room("box", (-1, -1, 0), (1, 1, 2), {k: white for k in ("floor", "ceiling", "-x", "+x", "-y", "+y")})
+    b.light("lamp", "POINT", (0, 0, 1.5), energy=10.0)
+    b.camera((0.0, -0.9, 1.0), (0.0, 0.0, 1.0), lens=18.0)
+    sc.world = demo_scenes.make_world(b.n("world"), (0, 0, 0), 0.0)
+    return sc
+
+
+WALLS = (("floor", 2, 1), ("ceiling", 2, -1), ("red (-x)", 0, 1), ("green (+x)", 0, -1), ("back (+y)", 1, -1))
+
+
+def _per_wall(values, ref, normal):
+    """Mean of values over ref's mean on each axis-aligned wall (by the shading normal);
+    'boxes' = the rest."""
+    import numpy as np
+
+    out, rest = {}, np.ones(values.shape, bool)
+    for name, ax, sg in WALLS:
+        m = normal[..., ax] * sg > 0.98
+        rest &= ~m
+        if m.any():
+            out[name] = float(values[m].mean() / max(ref[m].mean(), 1e-9))
+    if rest.any():
+        out["boxes"] = float(values[rest].mean() / max(ref[rest].mean(), 1e-9))
+    return out
+
+
+AUDIT_CONFIGS = (
+    ("default", {}),
+    ("edge opacity 0", {"vxgi_inject": {"edge_opacity": 0.0}}),
+    ("edge opacity 0.3", {"vxgi_inject": {"edge_opacity": 0.3}}),
+    ("footprint cap 1", {"vxgi_inject": {"footprint_cap": 1.0}, "vxgi_trace": {"footprint_cap": 1.0}}),
+    ("footprint cap 0 (off)", {"vxgi_inject": {"footprint_cap": 0.0}, "vxgi_trace": {"footprint_cap": 0.0}}),
+    ("normal offset 1.5", {"vxgi_inject": {"normal_offset": 1.5}, "vxgi_trace": {"normal_offset": 1.5}}),
+    ("thickness 0", {"vxgi_voxelize": {"thickness": 0.0}}),
+    ("opacity x2", {"vxgi_inject": {"opacity_scale": 2.0}, "vxgi_trace": {"opacity_scale": 2.0}}),
+)
+
+
+def _merge(a, b):
+    out = {k: dict(v) for k, v in a.items()}
+    for k, v in b.items():
+        out.setdefault(k, {}).update(v)
+    return out
+
+
+def audit(o, out):
+    """Energy audit. (1) White furnace in the voxel domain: a closed box whose voxels all
+    show radiance L (``audit_radiance``), E / (pi L) at every pixel should be 1. (2) The
+    Cornell box's indirect light per wall: VXGI's GI_IndirectDiffuse with multi-bounce off
+    against Cycles' one_bounce - direct, on against full - direct."""
+    import bpy
+    import numpy as np
+    from gi_preview.blender import demo_scenes, reference
+    from gi_preview.blender.export import export_scene
+
+    rows = []
+    fur = _furnace_scene(o.res)
+    sd_f = export_scene(reference.evaluated_depsgraph(fur))
+    cb = demo_scenes.build_demo("cornell", resolution=o.res)
+    sd_c = export_scene(reference.evaluated_depsgraph(cb))
+    full = reference.render_cycles(cb, 256, "full")[0][..., :3].mean(axis=2)
+    one = reference.render_cycles(cb, 256, "one_bounce")[0][..., :3].mean(axis=2)
+    dire = reference.render_cycles(cb, 256, "direct")[0][..., :3].mean(axis=2)
+    for q in (x for x in o.qualities if x <= 1):
+        for label, props in AUDIT_CONFIGS:
+            p = _merge({"vxgi_inject": {"audit_radiance": 1.0, "multi_bounce": False},
+                        "vxgi_trace": {"audit_radiance": 1.0}}, props)
+            r = render_vxgi(sd_f, q, 1, p)
+            e = r.aovs["GI_IndirectDiffuse"][..., :3].mean(axis=2)
+            row = {"quality": q, "config": label, "furnace_mean": float(e.mean()), "furnace_min": float(e.min()),
+                   "furnace_p10": float(np.percentile(e, 10)),
+                   "furnace_walls": _per_wall(e, np.ones_like(e), r.aovs["Normal"])}
+            for mb, ref, key in ((False, one - dire, "one_bounce"), (True, full - dire, "full")):
+                r = render_vxgi(sd_c, q, o.samples, _merge({"vxgi_inject": {"multi_bounce": mb}}, props))
+                ind = r.aovs["GI_IndirectDiffuse"][..., :3].mean(axis=2)
+                row[f"cornell_indirect_vs_{key}"] = float(ind.mean() / ref.mean())
+                row[f"cornell_walls_vs_{key}"] = _per_wall(ind, ref, r.aovs["Normal"])
+                if mb:
+                    row["cornell_mean_vs_full"] = float(r.image[..., :3].mean() / full.mean())
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+    bpy.data.scenes.remove(fur)
+    bpy.data.scenes.remove(cb)
+    return rows
+
+
 OLD_EDGE = {"vxgi_inject": {"edge_opacity": 0.05, "footprint_cap": 0.0}, "vxgi_trace": {"footprint_cap": 0.0}}
 LEAK_CONFIGS = (
     ("no mitigation (thickness 0, edge opacity 0.05, no footprint cap)",
      {"vxgi_voxelize": {"thickness": 0.0}, **OLD_EDGE}),
     ("thickness 1, edge opacity 0.05, no footprint cap", OLD_EDGE),
-    ("thickness 0 (edge opacity 0.3, footprint cap 1)", {"vxgi_voxelize": {"thickness": 0.0}}),
-    ("default (thickness 1, edge opacity 0.3, footprint cap 1)", {}),
+    ("thickness 0 (edge opacity 0.1, footprint cap 0.35)", {"vxgi_voxelize": {"thickness": 0.0}}),
+    ("default (thickness 1, edge opacity 0.1, footprint cap 0.35)", {}),
+    ("default, edge opacity 0.3", {"vxgi_inject": {"edge_opacity": 0.3}}),
+    ("default, edge opacity 0", {"vxgi_inject": {"edge_opacity": 0.0}}),
     ("default, opacity x2", {"vxgi_inject": {"opacity_scale": 2.0}, "vxgi_trace": {"opacity_scale": 2.0}}),
     ("default, thickness 2", {"vxgi_voxelize": {"thickness": 2.0}}),
 )
@@ -200,6 +301,18 @@ def write_md(path, data, o):
     L = ["# VXGI against Cycles (scripts/bench_vxgi.py)", "",
          f"Resolution {o.res} px (sweep {o.sweep_res}), Cycles {o.ref_spp} spp, {o.samples} accumulated "
          f"frames after each quality level's warm-up; llvmpipe, 2 cores.", ""]
+    if "audit" in data:
+        L += ["## Energy audit", "",
+              "Furnace: a closed 2 m box whose voxels all show radiance L (`audit_radiance`): E / (pi L), ideal 1. "
+              "Cornell: VXGI's GI_IndirectDiffuse over Cycles' (256 spp) indirect light, multi-bounce off vs "
+              "one_bounce - direct, on vs full - direct; per wall in bench.json.", "",
+              "| q | configuration | furnace mean | furnace p10 | Cornell indirect, one-bounce | Cornell indirect, full | Cornell image / full |",
+              "|---|---|---|---|---|---|---|"]
+        for r in data["audit"]:
+            L.append(f"| {r['quality']} | {r['config']} | {_f(r['furnace_mean'], '.3f')} | {_f(r['furnace_p10'], '.3f')} | "
+                     f"{_f(r['cornell_indirect_vs_one_bounce'], '.3f')} | {_f(r['cornell_indirect_vs_full'], '.3f')} | "
+                     f"{_f(r['cornell_mean_vs_full'], '.3f')} |")
+        L.append("")
     if "accuracy" in data:
         L += ["## Accuracy against Cycles 'full'", "",
               "| scene | technique | q | multi-bounce | relMSE full | relMSE one-bounce | mean / full | ms/frame | setup ms |",
@@ -242,7 +355,7 @@ def write_md(path, data, o):
 
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    for s in ("accuracy", "leak", "stability", "sweep"):
+    for s in ("audit", "accuracy", "leak", "stability", "sweep"):
         p.add_argument(f"--{s}", action="store_true")
     p.add_argument("--res", type=int, default=48)
     p.add_argument("--qualities", default="0,1,2,3", help="quality levels of --accuracy and --sweep (--leak: those <= 1)")
@@ -254,7 +367,7 @@ def main(argv=None):
     p.add_argument("--out", default=os.path.join(REPO, "docs", "results", "vxgi"))
     o = p.parse_args(argv)
     o.qualities = [int(x) for x in o.qualities.split(",")]
-    chosen = [s for s in ("accuracy", "leak", "stability", "sweep") if getattr(o, s)] or [
+    chosen = [s for s in ("audit", "accuracy", "leak", "stability", "sweep") if getattr(o, s)] or [
         "accuracy", "leak", "stability", "sweep"]
     os.makedirs(o.out, exist_ok=True)
     path = os.path.join(o.out, "bench.json")
@@ -265,7 +378,7 @@ def main(argv=None):
     _setup()
     t0 = time.time()
     for s in chosen:
-        data[s] = {"accuracy": accuracy, "leak": leak, "stability": stability, "sweep": sweep}[s](o, o.out)
+        data[s] = {"audit": audit, "accuracy": accuracy, "leak": leak, "stability": stability, "sweep": sweep}[s](o, o.out)
         with open(path, "w") as f:
             json.dump(data, f, indent=1)
     data["settings"] = {"res": o.res, "ref_spp": o.ref_spp, "samples": o.samples, "sweep_res": o.sweep_res,

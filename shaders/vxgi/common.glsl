@@ -73,6 +73,13 @@ uniform float u_vx_opacity_scale;  // opacity bias (>= 1 thickens occluders, aga
 // the cone, weighted by d^2. Cascade: the finest containing p whose voxels are at most
 // `diam` (mip = log2(diam / voxel)). Returns the premultiplied sample; `width` = the filter
 // width used (opacity correction), 0 when p is outside every cascade.
+// Radiance: the d^2-weighted faces un-premultiplied (sum w rgb / sum w a: a wall crossed at
+// any angle shows its facing side's radiance, undiluted by the faces it is edge-on to).
+// Opacity: the LARGEST of the three faces' opacities (a face weighted below VX_FACE_W_FULL
+// counts proportionally less), not their d^2 mean: a plane is opaque to any ray crossing it,
+// and the mean (cos^2 of the angle to the wall's normal per sample; the samples inside one
+// wall layer are perfectly correlated, not independent) let oblique cones through walls.
+// Energy audit (closed box, q0): the mean lost 13 % more of E than the max (0.73 -> 0.85).
 vec4 vx_sample(vec3 p, float diam, vec3 d, out float width) {
     width = 0.0;
     float n = float(u_vx_n);
@@ -115,6 +122,9 @@ vec4 vx_sample(vec3 p, float diam, vec3 d, out float width) {
 // the start's height, cosn: d . n). A 30-degree cone at 60 degrees from the normal grazes the
 // plane; uncapped, its coarse mips reach back over the receiver's own voxel layer and read
 // that surface's far side (the sun-lit outside of a roof under it, the lit side of a wall).
+// Trilinear filtering of a mip texel as wide as the footprint is a tent of half-width diam,
+// so cap 1 still reached the plane itself; 0.35 keeps the tent above the receiver's own
+// layer (the default, sunlit_room q0 relMSE 0.18 at 0.5 -> 0.12 at 0.35 with edge opacity 0).
 uniform float u_vx_cap;  // 0: off
 vec4 vx_cone_h(vec3 o, vec3 d, float tan_half, float t0, float t1, float step_scale, float h0, float cosn) {
     vec3 col = vec3(0.0);

@@ -44,7 +44,8 @@ uniform int u_mesh_exact_max;
 uniform uint u_sample;
 uniform int u_directional_opacity;  // level-0 opacity towards D: |n.D| (else 1)
 uniform float u_edge_opacity;       // smallest level-0 opacity of an occupied voxel (directional opacity)
-uniform float u_audit;              // > 0: energy audit, both sides of every surface show this radiance
+uniform float u_audit;  // > 0: energy audit, both sides of every surface show this radiance
+uniform int u_rotate;  // 1: the five side cones turn around the normal every frame
 #define VX_SIDE_CUT 0.5              // voxels: a record whose centre lies further off its plane shows one side
 
 // Visibility of the light from the RSM view v (sun) for the surface side at ps (already
@@ -169,7 +170,7 @@ void main() {
     float vs = o.w;
     vec3 centre = o.xyz + (vec3(v) + 0.5) * vs;
     Rng rng = rng_init(uvec2(gid.x + gid.z * N, gid.y), u_sample, 7u);
-    float rot = fract(float(u_sample % 4096u) * 0.6180339887) * TWO_PI;
+    float rot = u_rotate == 1 ? fract(float(u_sample % 4096u) * 0.6180339887) * TWO_PI : 0.0;
     float off = u_normal_offset * vs;
     // per direction D: the buckets facing D (their front side, n.D > 0) composited over those
     // facing away (their back side), each over its projected coverage |n.D|
