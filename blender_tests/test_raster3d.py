@@ -243,12 +243,13 @@ def test_planner_skips_without_shadow_casting_light_or_under_open_sky():
             bpy.data.objects.remove(ob)
         cases = ((_export(sc), "no light casts shadows"), (_export(sky), "open sky only"))
         for sd, why in cases:
-            for tech in TECHS:
-                res = session.render(sd, tech, 0, 1)
+            # a filtered render (scene.gi_preview.denoiser / use_taa) is planned by the same graph
+            for tech, filt in [(t, {}) for t in TECHS] + [("RSM", {"denoiser": "ATROUS", "use_taa": True})]:
+                res = session.render(sd, tech, 0, 1, **filt)
                 skipped = {s.name: s.reason for s in res.skipped_passes}
                 own = {"RSM": {"rsm", "rsm_gather", "rsm_resolve", "rsm_composite", "rsm_debug"},
                        "LPV": {"rsm", "lpv", "lpv_lookup", "lpv_composite", "lpv_debug", "rsm_debug"}}[tech]
-                assert own <= set(skipped), (tech, why, skipped)
+                assert own <= set(skipped), (tech, filt, why, skipped)
                 assert all(why in skipped[n] for n in own), (tech, skipped)
                 assert np.isfinite(res.image).all()
                 assert "direct_light" not in skipped

@@ -77,11 +77,9 @@ class Session:
         key = (technique_id, quality, (denoiser or "NONE").upper(), bool(use_taa))
         if key not in self.graphs:
             tech = techniques.get(technique_id)()
-            if key[2] != "NONE" or key[3]:  # scene.gi_preview.denoiser / use_taa end the graph
-                from .passes.filters import with_filters
-                graph = framegraph.FrameGraph(with_filters(tech.passes(quality), key[2], key[3], quality))
-            else:
-                graph = tech.build(quality)
+            # scene.gi_preview.denoiser / use_taa end the graph; the technique's own graph type
+            # plans it either way (a filtered RSM still skips its passes without shadow lights)
+            graph = tech.build(quality, key[2], key[3])
             self.graphs[key] = (tech, graph)
         return self.graphs[key]
 

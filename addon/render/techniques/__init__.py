@@ -54,8 +54,18 @@ class Technique:
     def passes(self, quality: int) -> list:
         raise NotImplementedError
 
-    def build(self, quality: int) -> FrameGraph:
-        return FrameGraph(self.passes(quality))
+    # the graph type that plans this technique's passes (RSM/LPV/VXGI: a graph that skips the
+    # injected-light passes, with the reason, when no light casts shadows)
+    graph_class = FrameGraph
+
+    def build(self, quality: int, denoiser: str = "NONE", use_taa: bool = False) -> FrameGraph:
+        """The technique's graph at ``quality``, ended by the filters ``scene.gi_preview.denoiser``
+        and ``use_taa`` ask for (``with_filters``), planned by ``graph_class`` either way."""
+        passes = self.passes(quality)
+        if (denoiser or "NONE").upper() != "NONE" or use_taa:
+            from ..passes.filters import with_filters
+            passes = with_filters(passes, (denoiser or "NONE").upper(), bool(use_taa), quality)
+        return self.graph_class(passes)
 
     @classmethod
     def info(cls) -> TechniqueInfo:

@@ -46,6 +46,7 @@ class LPV(Technique):
     family = "raster3d"
     reference = "one_bounce"
     cost_rank = 25
+    graph_class = LightGatedGraph  # skips the injected-light passes without shadow-casting lights
     outputs = {**DIRECT_OUTPUTS, "GI_IndirectDiffuse": "lpv_composite.effect", "GI_RSM_Flux": "rsm.debug_flux",
                "GI_LPV_Slice": "lpv.debug_slice", "GI_LPV_Cascade": "lpv.cascade"}
 
@@ -61,8 +62,6 @@ class LPV(Technique):
                               ao_output="lpv.vis", provides=INDIRECT),
                 RSMDebugPass(quality), LPVDebugPass(quality)]
 
-    def build(self, quality):
-        return LightGatedGraph(self.passes(quality))
 
 
 __all__ = ["LPV"]

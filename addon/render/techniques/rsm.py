@@ -51,6 +51,7 @@ class RSM(Technique):
     family = "raster3d"
     reference = "one_bounce"
     cost_rank = 20
+    graph_class = LightGatedGraph  # skips the injected-light passes without shadow-casting lights
     outputs = {**DIRECT_OUTPUTS, "GI_IndirectDiffuse": "rsm_composite.effect",
                "GI_RSM_Flux": "rsm.debug_flux", "GI_RSM_Regather": "rsm.regather"}
 
@@ -62,8 +63,6 @@ class RSM(Technique):
                               ao_output="rsm.vis", provides=INDIRECT),
                 RSMDebugPass(quality)]
 
-    def build(self, quality):
-        return LightGatedGraph(self.passes(quality))
 
 
 __all__ = ["RSM", "rsm_passes", "Effect"]
