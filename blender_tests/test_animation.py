@@ -166,11 +166,12 @@ def test_animation_compare_cornell_svgf_taa(tmp_path):
             assert all(np.isfinite(a["relmse"]))
             assert a["stability_ratio"] <= 2.0, f"{tech}: stability {a['stability_ratio']:.2f}x Cycles'"
             # SVGF meets the issue's 1.5x here. TAA at this size (32 px, 6 moving frames) measures
-            # 1.90x (2.02x before the 5x5 input filter / Catmull-Rom history): its still level fell
-            # more than the trail's error with the reconstruction filter; at 48 px / 12 frames
-            # (scripts/bench_filters.py) the Cornell pan's trail is 1.09-1.93x over 4 seeds (mean
-            # 1.55; the old TAA 1.03-1.95, mean 1.50). Bounded here, not met: TAA.md
-            bound = A.RECOVERY_TOLERANCE if tech == "SVGF" else 2.5
+            # 1.66x with the history normal test + 3x3 same-surface fallback under motion (1.90x
+            # without them, which this bound rejects): the trail error is flat after the stop
+            # (0.030 -> 0.023, no decaying ghost) but edge pixels regain their anti-aliased mix only
+            # at alpha. At 48 px / 12 frames the Cornell pan's trail is 0.68/0.69/1.19/1.19x over
+            # 4 seeds (was 1.41/1.09/1.75/1.93x). Bounded here, not met at 32 px: TAA.md
+            bound = A.RECOVERY_TOLERANCE if tech == "SVGF" else 1.8
             assert tr["ratio_at_8"] <= bound, f"{tech}: ghost trail, {tr['ratio_at_8']:.2f}x still level"
         assert res["animation"]["techniques"]["TAA"]["stability"] == pytest.approx(
             anim["techniques"]["TAA"]["stability"])

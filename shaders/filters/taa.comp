@@ -8,6 +8,14 @@
 //   is detected by geometry, not by colour. The kept taps are renormalised. Where all 4x4
 //   taps around the point pass, the colour is resampled with Catmull-Rom instead (bilinear
 //   resampling blurs the history a little every moving frame, and the blur accumulates).
+// * Under motion (|motion| > u_normal_motion) a history tap must also face like this pixel
+//   (normal . N > u_hist_normal; history normals in taa.aux.yzw): the plane test alone accepted
+//   the front face's texels near an edge for a grazing side face revealed by a pan (they lie
+//   within 2 footprints of its plane), a lit ghost that decayed at alpha (Cornell pan trail
+//   1.1-1.9x the still level over seeds). Where no bilinear tap passes, the same-surface texels
+//   of the 3x3 around the reprojected point are used (Schied 2017's fallback). A still pixel
+//   keeps the plane test only: its own texel holds its footprint's mix of surfaces (the edge
+//   anti-aliasing), whatever surface this frame's jittered sample hit.
 // * A light edit caps the history length (u_len_cap) instead of restarting it.
 // * History length per pixel (alpha channel): the blend weight is max(u_alpha, 1/length),
 //   so a disoccluded pixel starts from its own samples and converges like a running mean.
@@ -34,7 +42,7 @@
 
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, rgba32f) uniform writeonly image2D o_hist;   // rgb result, a = history length
-layout(binding = 1, rgba32f) uniform writeonly image2D o_aux;    // x = E[Y^2] (same average), yzw 0
+layout(binding = 1, rgba32f) uniform writeonly image2D o_aux;    // x = E[Y^2] (same average), yzw = normal
 layout(binding = 2, rgba32f) uniform writeonly image2D o_pos;    // xyz, w = 1 surface / 0 background
 layout(binding = 3, rgba32f) uniform writeonly image2D o_debug;  // r = length / max, g = share clipped
 
@@ -54,6 +62,16 @@ uniform float u_young;       // history length up to which the input filter is 5
 uniform int u_radius;        // input filter radius beyond (1: 3x3, 2: 5x5)
 uniform int u_history_filter;    // 0: bilinear history, 1: Catmull-Rom where all 16 taps are usable
 uniform float u_len_cap;  // history length kept through this frame (a light edit: light_history)
+uniform int u_hist_fallback;  // 1: 3x3 same-surface search where no bilinear tap is usable
+uniform float u_hist_normal;  // history tap kept only if its normal . this normal > this (-1: off)
+
+// is the history texel (position hp, normal hn) on this pixel's surface (P, N)?
+uniform float u_normal_motion;  // ... where the reprojection moves by more than this (pixels)
+float g_ncos = -2.0;  // the normal threshold in force for this pixel (set in main)
+bool hist_same_surface(bool surf, vec3 P, vec3 N, vec4 hp, vec3 hn) {
+    if (!surf) return hp.w < 0.5;
+    return hp.w >= 0.5 && plane_pixels(P, N, hp.xyz) <= 2.0 && dot(N, hn) > g_ncos;
+}
 
 // Catmull-Rom weights of the taps at -1, 0, 1, 2 for a fraction f in [0, 1)
 vec4 catmull_rom_weights(float f) {
@@ -139,7 +157,10 @@ void main() {
     vec3 hc = vec3(0.0);
     float hlen = 0.0, hm2 = 0.0, wsum = 0.0;
     if (u_reset == 0) {
-        vec2 prev = vec2(px) + 0.5 - texelFetch(u_gb_motion, px, 0).xy - 0.5;
+        vec2 mv = texelFetch(u_gb_motion, px, 0).xy;
+        vec2 prev = vec2(px) + 0.5 - mv - 0.5;
+        bool moving = length(mv) > u_normal_motion;
+        if (moving) g_ncos = u_hist_normal;
         ivec2 b = ivec2(floor(prev));
         vec2 f = prev - vec2(b);
         for (int j = 0; j < 2; ++j)
@@ -150,7 +171,7 @@ void main() {
                 vec4 ha = texelFetch(u_hist_aux, t, 0);
                 vec4 hp = texelFetch(u_hist_pos, t, 0);
                 if (!(finite4(h) && finite4(ha) && finite4(hp)) || h.a < 1.0) continue;
-                if (surf ? (hp.w < 0.5 || plane_pixels(P, N, hp.xyz) > 2.0) : hp.w > 0.5) continue;
+                if (!hist_same_surface(surf, P, N, hp, ha.yzw)) continue;
                 float w = (i == 0 ? 1.0 - f.x : f.x) * (j == 0 ? 1.0 - f.y : f.y);
                 hc += w * max(h.rgb, vec3(0.0));
                 hlen += w * h.a;
@@ -172,11 +193,32 @@ void main() {
                     if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, size))) { ok = false; break; }
                     vec4 h = texelFetch(u_hist, t, 0);
                     vec4 hp = texelFetch(u_hist_pos, t, 0);
-                    if (!(finite4(h) && finite4(hp)) || h.a < 1.0
-                        || (surf ? (hp.w < 0.5 || plane_pixels(P, N, hp.xyz) > 2.0) : hp.w > 0.5)) { ok = false; break; }
+                    vec4 ha = texelFetch(u_hist_aux, t, 0);
+                    if (!(finite4(h) && finite4(hp) && finite4(ha)) || h.a < 1.0
+                        || !hist_same_surface(surf, P, N, hp, ha.yzw)) { ok = false; break; }
                     cr += cx[i + 1] * cyw[j + 1] * max(h.rgb, vec3(0.0));
                 }
             if (ok) hc = wsum * max(cr, vec3(0.0));  // hc is divided by wsum below
+        }
+        // no bilinear tap on this surface: the same-surface texels of the 3x3 around the
+        // reprojected point (Schied 2017's fallback), so an edge pixel whose jittered sample
+        // flips between two surfaces keeps its own surface's history instead of restarting
+        if (u_hist_fallback == 1 && moving && wsum <= 0.01) {
+            ivec2 c = ivec2(floor(prev + 0.5));
+            for (int j = -1; j <= 1; ++j)
+                for (int i = -1; i <= 1; ++i) {
+                    ivec2 t = c + ivec2(i, j);
+                    if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, size))) continue;
+                    vec4 h = texelFetch(u_hist, t, 0);
+                    vec4 ha = texelFetch(u_hist_aux, t, 0);
+                    vec4 hp = texelFetch(u_hist_pos, t, 0);
+                    if (!(finite4(h) && finite4(ha) && finite4(hp)) || h.a < 1.0) continue;
+                    if (!hist_same_surface(surf, P, N, hp, ha.yzw)) continue;
+                    hc += max(h.rgb, vec3(0.0));
+                    hlen += h.a;
+                    hm2 += max(ha.x, 0.0);
+                    wsum += 1.0;
+                }
         }
     }
     vec3 outc;
@@ -210,7 +252,7 @@ void main() {
     }
     outc = sanitize(outc);
     imageStore(o_hist, px, vec4(outc, len));
-    imageStore(o_aux, px, vec4(isnan(om2) || isinf(om2) ? 0.0 : om2, 0.0, 0.0, 0.0));
+    imageStore(o_aux, px, vec4(isnan(om2) || isinf(om2) ? 0.0 : om2, surf ? N : vec3(0.0)));
     imageStore(o_pos, px, surf ? vec4(P, 1.0) : vec4(0.0));
     imageStore(o_debug, px, vec4(vec3(len / max(u_max_history, 1.0), min(clipped, 1.0), 0.0), 1.0));
 }

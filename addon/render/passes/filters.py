@@ -219,6 +219,12 @@ class TAAPass(_FilterPass):
         Param("young", 8.0, 0.0, 1024.0, "history length up to which the input filter is 5x5 whatever radius"),
         Param("history_filter", 1, 0, 1, "history resampling: 1 Catmull-Rom (4x4 taps, where all are on the "
               "pixel's surface; else bilinear), 0 bilinear"),
+        Param("history_normal", 0.9, -1.0, 1.0, "a history texel is kept only if its normal . the pixel's normal "
+              "exceeds this (-1: off)"),
+        Param("normal_motion", 0.0, 0.0, 100.0, "history_normal applies where the reprojection moves by more "
+              "than this (pixels)"),
+        Param("history_fallback", 1, 0, 1, "1: where no bilinear history tap is on the pixel's surface, the "
+              "same-surface texels of the 3x3 around the reprojected point"),
         Param("light_history", 2, 0, 1024, "a light edit caps the history length at this (0: restarts the "
               "history)"),
     )
@@ -243,6 +249,9 @@ class TAAPass(_FilterPass):
         set_uniform(prog, "u_young", float(self["young"]))
         set_uniform(prog, "u_history_filter", int(self["history_filter"]))
         set_uniform(prog, "u_radius", int(self["radius"]))
+        set_uniform(prog, "u_hist_normal", float(self["history_normal"]))
+        set_uniform(prog, "u_hist_fallback", int(self["history_fallback"]))
+        set_uniform(prog, "u_normal_motion", float(self["normal_motion"]))
         soft = "lights" in frame.scene_edits and int(self["light_history"]) > 0
         set_uniform(prog, "u_len_cap", float(self["light_history"]) if soft else 1e9)
         for unit, name in enumerate(("taa.history", "taa.aux", "taa.pos", "taa.debug")):

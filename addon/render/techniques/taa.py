@@ -4,7 +4,8 @@ session's R2 sequence (see passes/filters.py). Docs: docs/techniques/TAA.md.
 
 Parameters (pass ``taa``): alpha (least current-frame weight), gamma (box width in sigmas),
 max_history, input_filter/radius/young (same-surface binomial of the current frame, 5x5 by
-default), history_filter (Catmull-Rom history), light_history (a light edit caps the history
+default), history_filter (Catmull-Rom history), history_normal/normal_motion/history_fallback (under
+motion a history tap must face like the pixel; 3x3 same-surface fallback), light_history (a light edit caps the history
 length instead of restarting it). Debug render pass GI_TAA_History (R: history length / max_history, G: share of
 the history moved by the clip).
 Quality ladder: alpha 0.2, 0.1, 0.1 (gamma 1), 0.05 (gamma 1). Warm-up: 8 frames."""
