@@ -1,8 +1,7 @@
 """VXGI (issue 10: voxel cone tracing) against Cycles: accuracy, leaks, voxelisation, stability.
 
-VXGI is experimental (registered only with GI_PREVIEW_EXPERIMENTAL=1, see
-techniques/vxgi.py): the module fixture registers it for these tests and removes it again,
-so the menu, AUTO and the hard-case tests of the other modules never see it.
+VXGI is registered like every technique, so the hard-case tests (test_stability.py) and the
+engine tests render it too; this module checks what only it does.
 Small on purpose (32-40 px, quality 0 = 32³ voxels x 2 cascades, Cycles 128 spp); the q0-q3
 sweeps, the 60-frame stability run and the leak table are in scripts/bench_vxgi.py
 (docs/results/vxgi/). Measured (Blender 5.0.1, llvmpipe, 40 px, q0), printed by each test,
@@ -29,7 +28,6 @@ from pathlib import Path
 
 import bpy
 import numpy as np
-import pytest
 
 from gi_preview.blender import demo_scenes, reference
 from gi_preview.compare import metrics
@@ -41,20 +39,6 @@ import scenes_raster3d
 
 RES, SPP, FRAMES, Q = 40, 128, 4, 0
 ARTIFACTS = Path(__file__).resolve().parent / "_artifacts" / "vxgi"
-
-
-@pytest.fixture(scope="module", autouse=True)
-def vxgi_registered():
-    """Register the experimental technique for this module only."""
-    from gi_preview.render import techniques
-    from gi_preview.render.techniques import vxgi
-
-    techniques._load()
-    had = "VXGI" in techniques.REGISTRY
-    techniques.register(vxgi.VXGI)
-    yield
-    if not had:
-        techniques.REGISTRY.pop("VXGI", None)
 
 
 def _dump(name, **images):

@@ -40,7 +40,6 @@ DEMOS = ("cornell", "glossy_spheres", "sunlit_room", "emissive_panel", "many_lig
 
 
 def _setup():
-    os.environ["GI_PREVIEW_EXPERIMENTAL"] = "1"  # VXGI is experimental (techniques/vxgi.py)
     sys.path.insert(0, os.path.join(REPO, "blender_tests"))
     import conftest  # noqa: F401  (hermetic Blender user folder, `import gi_preview`)
 
@@ -276,7 +275,7 @@ def stability(o, out, frames=60):
 
 def sweep(o, out):
     rows = []
-    env = dict(os.environ, GI_PREVIEW_EXPERIMENTAL="1")
+    env = dict(os.environ)
     for scene in o.scenes.split(","):
         dst = os.path.join(out, scene)
         cmd = [sys.executable, os.path.join(HERE, "gi_compare.py"), scene, "--techniques", "DIRECT,VXGI",
