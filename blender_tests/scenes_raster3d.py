@@ -7,6 +7,10 @@
   whatever a technique shows there is light leaking through the wall. ``lit_camera``
   moves the camera into the left room (the lit level the leak is compared with).
 
+* ``furnace_box``: a closed 2 m box (all six walls white, 0.8), a point light (so that the
+  planner keeps the injected-light passes) and a camera inside looking at a corner region:
+  VXGI's energy audit (every voxel side shows one radiance; the cones must return E = pi L).
+
 ``build(name, resolution)`` returns a new ``bpy`` scene (the caller removes it).
 """
 from __future__ import annotations
@@ -15,7 +19,7 @@ import math
 
 import bpy
 
-SCENES = ("two_rooms",)
+SCENES = ("two_rooms", "furnace_box")
 
 
 def _two_rooms(b, mp, mw, lit_camera=False):
@@ -35,6 +39,14 @@ def _two_rooms(b, mp, mw, lit_camera=False):
     b.scene.world = mw(b.n("world"), (0, 0, 0), 0.0)
 
 
+def _furnace_box(b, mp, mw, lit_camera=False):
+    white = mp(b.n("white"), (0.8, 0.8, 0.8), 1.0, specular=0.0)
+    b.room("box", (-1, -1, 0), (1, 1, 2), {k: white for k in ("floor", "ceiling", "-x", "+x", "-y", "+y")})
+    b.light("lamp", "POINT", (0, 0, 1.5), energy=10.0)
+    b.camera((0.0, -0.9, 1.0), (0.0, 0.0, 1.0), lens=18.0)
+    b.scene.world = mw(b.n("world"), (0, 0, 0), 0.0)
+
+
 def build(name: str, resolution: int = 48, *, lit_camera: bool = False):
     from gi_preview.blender import demo_scenes
 
@@ -46,7 +58,8 @@ def build(name: str, resolution: int = 48, *, lit_camera: bool = False):
     r.resolution_percentage = 100
     sc.frame_current = 1
     b = demo_scenes._Builder(sc, f"r3d_{name}{'_lit' if lit_camera else ''}")
-    _two_rooms(b, demo_scenes.make_principled, demo_scenes.make_world, lit_camera=lit_camera)
+    {"two_rooms": _two_rooms, "furnace_box": _furnace_box}[name](
+        b, demo_scenes.make_principled, demo_scenes.make_world, lit_camera=lit_camera)
     return sc
 
 

@@ -140,28 +140,13 @@ def test_thin_wall_leak_is_measured():
         bpy.data.scenes.remove(lit)
 
 
-def _furnace_scene(res):
-    """A closed 2 m box (all six walls), a point light (so that the planner keeps VXGI) and a
-    camera inside looking at a corner region."""
-    sc = bpy.data.scenes.new("vxgi_furnace")
-    sc.render.resolution_x = sc.render.resolution_y = res
-    sc.render.resolution_percentage = 100
-    b = demo_scenes._Builder(sc, "vxgi_furnace")
-    white = demo_scenes.make_principled(b.n("white"), (0.8, 0.8, 0.8), 1.0, specular=0.0)
-    b.room("box", (-1, -1, 0), (1, 1, 2), {k: white for k in ("floor", "ceiling", "-x", "+x", "-y", "+y")})
-    b.light("lamp", "POINT", (0, 0, 1.5), energy=10.0)
-    b.camera((0.0, -0.9, 1.0), (0.0, 0.0, 1.0), lens=18.0)
-    sc.world = demo_scenes.make_world(b.n("world"), (0, 0, 0), 0.0)
-    return sc
-
-
 def test_energy_audit_closed_box():
     """White furnace in the voxel domain: with ``audit_radiance`` L every voxelised surface
     shows L on both sides, so the six cones must return E = pi L at every pixel of a closed
     box (GI_IndirectDiffuse holds E / pi in audit mode). What is missing is lost by the cone
     gather itself: cones leaking through walls, the receiver's own layer read from behind,
     black edge-on occluders (edge_opacity), starts pushed past a corner's other wall."""
-    sc = _furnace_scene(24)
+    sc = scenes_raster3d.build("furnace_box", 24)
     try:
         sd = _export(sc)
         got = {}

@@ -99,22 +99,6 @@ def accuracy(o, out):
     return rows
 
 
-def _furnace_scene(res):
-    import bpy
-    from gi_preview.blender import demo_scenes
-
-    sc = bpy.data.scenes.new("bench_vxgi_furnace")
-    sc.render.resolution_x = sc.render.resolution_y = res
-    sc.render.resolution_percentage = 100
-    b = demo_scenes._Builder(sc, "bench_vxgi_furnace")
-    white = demo_scenes.make_principled(b.n("white"), (0.8, 0.8, 0.8), 1.0, specular=0.0)
-    b.room("box", (-1, -1, 0), (1, 1, 2), {k: white for k in ("floor", "ceiling", "-x", "+x", "-y", "+y")})
-    b.light("lamp", "POINT", (0, 0, 1.5), energy=10.0)
-    b.camera((0.0, -0.9, 1.0), (0.0, 0.0, 1.0), lens=18.0)
-    sc.world = demo_scenes.make_world(b.n("world"), (0, 0, 0), 0.0)
-    return sc
-
-
 WALLS = (("floor", 2, 1), ("ceiling", 2, -1), ("red (-x)", 0, 1), ("green (+x)", 0, -1), ("back (+y)", 1, -1))
 
 
@@ -163,8 +147,10 @@ def audit(o, out):
     from gi_preview.blender import demo_scenes, reference
     from gi_preview.blender.export import export_scene
 
+    import scenes_raster3d
+
     rows = []
-    fur = _furnace_scene(o.res)
+    fur = scenes_raster3d.build("furnace_box", o.res)
     sd_f = export_scene(reference.evaluated_depsgraph(fur))
     cb = demo_scenes.build_demo("cornell", resolution=o.res)
     sd_c = export_scene(reference.evaluated_depsgraph(cb))
