@@ -3,7 +3,7 @@
 
     cd /work/main && flock /tmp/gi_heavy.lock .venv/bin/python scripts/bench_vxgi.py
         [--accuracy] [--leak] [--stability] [--sweep] [--res 48] [--ref-spp 128] [--qualities 0,1,2,3]
-        [--out docs/results/vxgi]
+        [--out docs/results/vxgi] [--images [--img-res 40] [--img-quality 0]]
 
 * ``--audit``: energy audit (q0/q1 of --qualities): a white furnace in the voxel domain (a
   closed box whose voxels show a known radiance L must give E = pi L) and the Cornell box's
@@ -22,7 +22,12 @@
 * ``--sweep``: scripts/gi_compare.py on every demo scene, DIRECT and VXGI at q0-q3 against
   the reference each models and "full" (relMSE, FLIP, time per frame, setup time,
   equal-error speed-up against Cycles' curve), into ``<out>/<scene>/``; ``<out>/sweep.md``.
-With no section flag, all five run. Results: ``<out>/bench.json`` and ``<out>/bench.md``.
+* ``--images``: docs/techniques/img/vxgi_cornell.png and vxgi_sunlit_room.png with the current
+  defaults: Cycles full ``--ref-spp`` | VXGI ``--img-quality`` | per-pixel relMSE (viridis,
+  log10 1e-4..1) | GI_VXGI_Voxels, ``--img-res`` px, each panel scaled 4x; relMSE and
+  mean / Cycles' mean printed and written to ``<out>/images.json``. Not part of the default run.
+With no section flag, --accuracy, --leak, --stability and --sweep run (--audit, --images only
+when asked). Results: ``<out>/bench.json`` and ``<out>/bench.md``.
 """
 from __future__ import annotations
 
@@ -259,6 +264,72 @@ def stability(o, out, frames=60):
     return row
 
 
+IMG_DIR = os.path.join(REPO, "docs", "techniques", "img")
+
+
+def _panel(img, scale=4):
+    """(H, W, 3) display-encoded float, bottom-up -> top-down uint8, scaled by nearest neighbour."""
+    import numpy as np
+
+    a = np.nan_to_num(np.asarray(img, np.float64)[::-1, :, :3], nan=0.0, posinf=1.0, neginf=0.0)
+    a = (np.clip(a, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+    return a.repeat(scale, axis=0).repeat(scale, axis=1)
+
+
+def images(o, out):
+    """Side-by-side images of cornell and sunlit_room for docs/techniques/VXGI.md."""
+    import bpy
+    import numpy as np
+    from PIL import Image, ImageDraw
+    from gi_preview.blender import demo_scenes, reference
+    from gi_preview.blender.export import export_scene
+    from gi_preview.compare import metrics
+
+    rows = []
+    for scene in ("cornell", "sunlit_room"):
+        sc = demo_scenes.build_demo(scene, resolution=o.img_res)
+        sd = export_scene(reference.evaluated_depsgraph(sc))
+        ref = reference.render_cycles(sc, o.ref_spp, "full")[0]
+        r = render_vxgi(sd, o.img_quality, o.samples)
+        img = r.image
+        heat, _legend = metrics.heatmap(img, ref, vmin=1e-4, vmax=1.0, log=True)
+        vox = r.aovs["GI_VXGI_Voxels"]
+        panels = [(f"Cycles full {o.ref_spp} spp", metrics.view_standard(ref)),
+                  (f"VXGI q{o.img_quality} now", metrics.view_standard(img)),
+                  ("relMSE, log 1e-4 to 1", heat),
+                  ("GI_VXGI_Voxels", metrics.view_standard(vox))]
+        tiles = [_panel(p) for _l, p in panels]
+        h, w = tiles[0].shape[:2]
+        strip = np.zeros((h + 14, w * len(tiles), 3), np.uint8)
+        for k, t in enumerate(tiles):
+            strip[14:, k * w:(k + 1) * w] = t
+        pil = Image.fromarray(strip)
+        d = ImageDraw.Draw(pil)
+        for k, (label, _p) in enumerate(panels):
+            d.text((k * w + 2, 1), label, fill=(255, 255, 255))
+        path = os.path.join(IMG_DIR, f"vxgi_{scene}.png")
+        pil.save(path)
+        row = {"scene": scene, "quality": o.img_quality, "res": o.img_res, "ref_spp": o.ref_spp,
+               "relmse_full": metrics.relmse(img, ref),
+               "mean_ratio_full": float(img[..., :3].mean() / ref[..., :3].mean()),
+               "finite": bool(np.isfinite(img).all()), "png": os.path.relpath(path, REPO)}
+        ours, cyc, n = img[..., :3].mean(axis=2), ref[..., :3].mean(axis=2), r.aovs["Normal"][..., :3]
+        for ax in range(3):  # mean / Cycles' mean over the surfaces facing each axis direction
+            for sg, name in ((1, "+"), (-1, "-")):
+                m = n[..., ax] * sg > 0.98
+                if m.sum() >= 20:
+                    row[f"mean_ratio_normal_{name}{'xyz'[ax]}"] = float(ours[m].mean() / max(cyc[m].mean(), 1e-9))
+        h = img.shape[0]  # rows are bottom-up
+        row["mean_ratio_top_quarter"] = float(ours[3 * h // 4:].mean() / cyc[3 * h // 4:].mean())
+        row["mean_ratio_bottom_quarter"] = float(ours[:h // 4].mean() / cyc[:h // 4].mean())
+        rows.append(row)
+        print(json.dumps(row), flush=True)
+        bpy.data.scenes.remove(sc)
+    with open(os.path.join(out, "images.json"), "w") as f:
+        json.dump(rows, f, indent=1)
+    return rows
+
+
 def sweep(o, out):
     rows = []
     env = dict(os.environ)
@@ -342,6 +413,9 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     for s in ("audit", "accuracy", "leak", "stability", "sweep"):
         p.add_argument(f"--{s}", action="store_true")
+    p.add_argument("--images", action="store_true", help="regenerate docs/techniques/img/vxgi_{cornell,sunlit_room}.png")
+    p.add_argument("--img-res", type=int, default=40)
+    p.add_argument("--img-quality", type=int, default=0)
     p.add_argument("--res", type=int, default=48)
     p.add_argument("--qualities", default="0,1,2,3", help="quality levels of --accuracy and --sweep (--leak: those <= 1)")
     p.add_argument("--ref-spp", type=int, default=128)
@@ -352,6 +426,7 @@ def main(argv=None):
     p.add_argument("--out", default=os.path.join(REPO, "docs", "results", "vxgi"))
     o = p.parse_args(argv)
     o.qualities = [int(x) for x in o.qualities.split(",")]
+    chosen_explicit = any(getattr(o, s) for s in ("audit", "accuracy", "leak", "stability", "sweep"))
     chosen = [s for s in ("audit", "accuracy", "leak", "stability", "sweep") if getattr(o, s)] or [
         "accuracy", "leak", "stability", "sweep"]
     os.makedirs(o.out, exist_ok=True)
@@ -361,6 +436,10 @@ def main(argv=None):
         with open(path) as f:
             data = json.load(f)
     _setup()
+    if o.images:
+        images(o, o.out)
+        if not chosen_explicit:
+            return
     t0 = time.time()
     for s in chosen:
         data[s] = {"audit": audit, "accuracy": accuracy, "leak": leak, "stability": stability, "sweep": sweep}[s](o, o.out)
