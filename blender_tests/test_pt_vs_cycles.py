@@ -254,17 +254,9 @@ def gl():
 
 
 def save_png(path: Path, img: np.ndarray):
-    from gi_preview.compare import metrics
-    ldr = metrics.view_standard(img)
-    from gi_preview.blender.reference import ensure_oiio
-    ensure_oiio()
-    import OpenImageIO as oiio
+    from gi_preview.compare import imageio, metrics
     path.parent.mkdir(parents=True, exist_ok=True)
-    out = (np.clip(ldr[::-1, :, :3], 0, 1) * 255 + 0.5).astype(np.uint8)
-    o = oiio.ImageOutput.create(str(path))
-    o.open(str(path), oiio.ImageSpec(out.shape[1], out.shape[0], 3, "uint8"))
-    o.write_image(out)
-    o.close()
+    imageio.write_png(str(path), metrics.view_standard(img)[..., :3])
 
 
 def run_scene(ctx, name: str, res: int, batches: int, spp: int, ref_spp: int, out_dir: Path | None = None):

@@ -269,10 +269,9 @@ IMG_DIR = os.path.join(REPO, "docs", "techniques", "img")
 
 def _panel(img, scale=4):
     """(H, W, 3) display-encoded float, bottom-up -> top-down uint8, scaled by nearest neighbour."""
-    import numpy as np
+    from gi_preview.compare.imageio import to_uint8
 
-    a = np.nan_to_num(np.asarray(img, np.float64)[::-1, :, :3], nan=0.0, posinf=1.0, neginf=0.0)
-    a = (np.clip(a, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
+    a = to_uint8(img[..., :3])
     return a.repeat(scale, axis=0).repeat(scale, axis=1)
 
 

@@ -73,14 +73,18 @@ def write_exr(path: str, image: np.ndarray, *, bottom_up: bool = True, half: boo
     _write(path, a, "half" if half else "float", {"compression": "zip"})
 
 
-def write_png(path: str, ldr: np.ndarray, *, bottom_up: bool = True):
-    """Write an LDR image with values in [0, 1] (already display encoded) as 8-bit PNG."""
+def to_uint8(ldr: np.ndarray, *, bottom_up: bool = True) -> np.ndarray:
+    """An LDR image with values in [0, 1] (already display encoded) as 8-bit, top row first;
+    non-finite values become 0 (NaN, -Inf) or 255 (+Inf)."""
     a = np.asarray(ldr, np.float64)
     a = np.nan_to_num(a, nan=0.0, posinf=1.0, neginf=0.0)
     a = (np.clip(a, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
-    if bottom_up:
-        a = a[::-1]
-    _write(path, a, "uint8", {})
+    return a[::-1] if bottom_up else a
+
+
+def write_png(path: str, ldr: np.ndarray, *, bottom_up: bool = True):
+    """Write an LDR image with values in [0, 1] (already display encoded) as 8-bit PNG."""
+    _write(path, to_uint8(ldr, bottom_up=bottom_up), "uint8", {})
 
 
 def png_bytes(ldr: np.ndarray, *, bottom_up: bool = True) -> bytes:
