@@ -5,12 +5,17 @@
   in front of a flat wall reveals exactly the columns that were off-screen.
 * The per-frame analysis on synthetic sequences: the stability figure is the mean absolute
   frame difference, a lagging history shows up as a trail that recovers when it should.
+* The trail's still level is paired: held frame t against the still run's frame t (same seeds);
+  with several noise draws the ratio is that of the means.
 * End to end on the Cornell box (32 px, a pan of 6 frames then 9 still frames, Cycles
   256 spp + OpenImageDenoise per frame, cached): results.json, the plot and the report are
   written, the scene is left as it was, and SVGF and TAA meet the issue's acceptance under a
   moving camera: the error in the pixels the pan disoccluded is back within 1.5x of the
   still-camera level 8 frames after the stop (no ghost trail), and the temporal stability
   figure is within 2x of Cycles'.
+* TAA's ghost on the 48-px Cornell pan (12 moving frames, 3 noise draws), where the TAA before
+  the history normal test (146b53a) left a lit ghost on the revealed side face: +8 frames
+  within 1.3x of the still level (measured 1.07x; that TAA 2.01x).
 """
 from __future__ import annotations
 
@@ -106,8 +111,53 @@ def test_analysis_stability_and_trail_synthetic():
     assert 4 <= tr["recovered_after"] <= 8, tr["relmse_after_stop"]
     assert tr["ratio_at_8"] < A.RECOVERY_TOLERANCE
     assert a["nonfinite_pixels"] == 0
+    assert not tr["paired"], "a still run shorter than the moving one: the mean of its last frames"
+    assert tr["still_after_stop"] == [pytest.approx(tr["still_level"])] * (spec.hold + 1)
     with pytest.raises(ValueError, match="unknown animation motion 'spin'"):
         A.AnimationSpec(motion="spin")
+    with pytest.raises(ValueError, match="noise draw"):
+        A.AnimationSpec(motion="pan", draws=0)
+
+
+def test_trail_still_level_is_paired_by_frame_and_draws_average():
+    """Held frame t is compared with the still run's frame t: when both share the frame's noise
+    (the same seeds) and the history carries nothing from the move, the ratio is 1 whatever
+    that noise is; a ghost shows on top of it. Draws: ratio of the means, not mean of ratios."""
+    spec = A.AnimationSpec(motion="pan", move=4, hold=10)
+    n, h, w = spec.frames, 12, 12
+    refs = [np.full((h, w, 4), 0.5, np.float32) for _ in range(n)]
+    mask = np.zeros((h, w), bool)
+    mask[:, :3] = True
+    masks = [None] + [mask.copy() for _ in range(1, n)]
+
+    def draw(seed, ghost):
+        rng = np.random.default_rng(seed)
+        # the frame's noise, shared by both runs; its size changes from frame to frame
+        noise = [rng.normal(0, 0.02 * (1 + t % 3), refs[0].shape).astype(np.float32) for t in range(n)]
+        still = [refs[t] + noise[t] for t in range(n)]
+        ours = [refs[t] + noise[t] for t in range(n)]
+        for t in range(spec.move, n):
+            ours[t][mask] += ghost * 0.5 ** (t - spec.move)
+        return ours, still
+
+    ours, still = draw(1, 0.0)
+    tr = A.analyse(spec, ours, refs, masks, mask, still)["trail"]
+    assert tr["paired"] and tr["ratio_after_stop"] == [pytest.approx(1.0)] * (spec.hold + 1)
+    assert tr["recovered_after"] == 0 and tr["ratio_at_8"] == pytest.approx(1.0)
+    ours, still = draw(1, 0.8)
+    tr = A.analyse(spec, ours, refs, masks, mask, still)["trail"]
+    assert tr["ratio_after_stop"][0] > 10 and tr["ratio_at_8"] < 1.2 and 2 <= tr["recovered_after"] <= 8
+    # three draws: the figures are the means over draws, the ratio is mean trail / mean still
+    runs = [draw(s, 0.8) for s in (2, 3, 4)]
+    a = A.analyse(spec, *runs[0][:1], refs, masks, mask, runs[0][1], draws=runs[1:])
+    one = [A.analyse(spec, o, refs, masks, mask, st) for o, st in runs]
+    per = np.mean([r["trail"]["relmse_after_stop"] for r in one], 0)
+    lv = np.mean([r["trail"]["still_after_stop"] for r in one], 0)
+    assert a["draws"] == 3
+    assert a["trail"]["ratio_at_8"] == pytest.approx(per[8] / lv[8])
+    assert a["trail"]["ratio_at_8_per_draw"] == [pytest.approx(r["trail"]["ratio_at_8"]) for r in one]
+    assert a["stability"] == pytest.approx(np.mean([r["stability"] for r in one]))
+    assert a["relmse"] == one[0]["relmse"], "per-frame lists are the first draw's"
 
 
 # ---------------------------------------------------------------- end to end (bpy, GL, Cycles)
@@ -165,15 +215,46 @@ def test_animation_compare_cornell_svgf_taa(tmp_path):
             assert len(a["relmse"]) == 16 and a["nonfinite_pixels"] == 0
             assert all(np.isfinite(a["relmse"]))
             assert a["stability_ratio"] <= 2.0, f"{tech}: stability {a['stability_ratio']:.2f}x Cycles'"
-            # SVGF meets the issue's 1.5x here. TAA at this size (32 px, 6 moving frames) measures
-            # 1.66x with the history normal test + 3x3 same-surface fallback under motion (1.90x
-            # without them, which this bound rejects): the trail error is flat after the stop
-            # (0.030 -> 0.023, no decaying ghost) but edge pixels regain their anti-aliased mix only
-            # at alpha. At 48 px / 12 frames the Cornell pan's trail is 0.68/0.69/1.19/1.19x over
-            # 4 seeds (was 1.41/1.09/1.75/1.93x). Bounded here, not met at 32 px: TAA.md
-            bound = A.RECOVERY_TOLERANCE if tech == "SVGF" else 1.8
-            assert tr["ratio_at_8"] <= bound, f"{tech}: ghost trail, {tr['ratio_at_8']:.2f}x still level"
+            # paired: the still run is as long as the moving one and drew the same seeds
+            assert tr["paired"] and tr["same_seeds"] and len(tr["still_relmse"]) == 16
+            # the issue's criterion. Measured (paired, this draw): SVGF 1.28x, TAA 1.30x; over 12
+            # seed offsets TAA 0.77-1.53x (mean 1.14), SVGF 0.85-2.56x (ratio of means 1.23, flat
+            # after the stop: the revealed pixels' shorter history, not a decaying ghost). At this
+            # size the TAA before the history normal test measures 1.49x here and 1.18x as a
+            # ratio of 12 seeds' means: its ghost has faded by +8; the 48-px test below sees it.
+            assert tr["ratio_at_8"] <= A.RECOVERY_TOLERANCE, f"{tech}: ghost trail, {tr['ratio_at_8']:.2f}x still level"
         assert res["animation"]["techniques"]["TAA"]["stability"] == pytest.approx(
             anim["techniques"]["TAA"]["stability"])
     finally:
         bpy.data.scenes.remove(sc)
+
+
+def test_taa_pan_ghost_trail_48px():
+    """The Cornell pan at 48 px (12 moving frames, 8 held, 3 noise draws): the pan reveals the
+    short box's right side face at a grazing angle; the TAA before 146b53a kept the lit front
+    face's history there (its plane test accepts texels near the edge) and measured 2.01x the
+    still level 8 frames after the stop (4.96x at the stop; 1.48-1.80x over groups of 3 seeds).
+    With the history normal test under motion: 1.07x (1.06-1.11x over groups of 3 seeds;
+    single draws 0.95-1.42x). Bound 1.3: between the two, three single-draw sd above this one."""
+    pytest.importorskip("bpy")
+    pytest.importorskip("moderngl")
+    import bpy
+    from gi_preview.blender import demo_scenes as D
+    from gi_preview.blender import export, reference
+    from gi_preview.render import session
+
+    sc = D.build_demo("cornell", resolution=48)
+    try:
+        res = A.run(sc, A.AnimationSpec(motion="pan", move=12, hold=8, draws=3), ["TAA"], reference=reference,
+                    export=export, session=session, width=48, height=48, log=lambda _m: None)
+    finally:
+        bpy.data.scenes.remove(sc)
+    a = res["animation"]["techniques"]["TAA"]
+    tr = a["trail"]
+    print(f"\nTAA cornell pan 48 px, 3 draws: trail {tr['mask_pixels']} px, +8 {tr['ratio_at_8']:.2f}x (draws "
+          f"{', '.join(f'{x:.2f}' for x in tr['ratio_at_8_per_draw'])}); after the stop "
+          f"{', '.join(f'{x:.2f}' for x in tr['ratio_after_stop'])}; stability {a['stability_ratio']:.2f}x")
+    assert a["draws"] == 3 and a["nonfinite_pixels"] == 0
+    assert tr["same_seeds"] and tr["mask_pixels"] >= 30
+    assert a["stability_ratio"] <= 2.0
+    assert tr["ratio_at_8"] <= 1.3, f"ghost trail: {tr['ratio_at_8']:.2f}x the still level 8 frames after the stop"

@@ -11,11 +11,20 @@ Each case writes a full comparison folder docs/results/animation_<scene>_<motion
 docs/results/filters/animation_<tag>.json and .md (a table per case: relMSE moving/held,
 stability vs Cycles', trail recovery, brightness of the last held frame against Cycles).
 Cycles per frame: 256 spp + OpenImageDenoise (cached), 12 moving + 10 still frames.
+
+``--draws N`` repeats each run with N independent noise draws (``AnimationSpec.draws``): the
+trail ratio is then the mean trail error over the mean still-camera error on the same held
+frame, the stability figure the mean over draws (per-draw values in the JSON). A case may give
+the motion's amount after an ``@`` (``cornell:pan@0.04``: a slow pan; the summary reports the
+pan's speed in pixels per frame at the viewed distance). ``--taa-set k=v,...`` overrides TAA
+parameters for the whole run (e.g. ``history_normal=-1,history_fallback=0``: the TAA before
+the history normal test of 146b53a).
 """
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import sys
 import time
@@ -35,6 +44,8 @@ def main():
     ap.add_argument("--hold", type=int, default=10)
     ap.add_argument("--ref-spp", type=int, default=256)
     ap.add_argument("--no-docs", action="store_true", help="write the case folders under /tmp instead of docs/results")
+    ap.add_argument("--draws", type=int, default=1, help="independent noise draws per run (trail/stability: means)")
+    ap.add_argument("--taa-set", default="", help="TAA parameter overrides k=v,... for every quality level")
     a = ap.parse_args()
     import gi_compare as gc
     pkg = gc.find_addon(False)
@@ -42,15 +53,26 @@ def main():
     session = importlib.import_module(pkg.__name__ + ".render.session")
     demo = importlib.import_module(pkg.__name__ + ".blender.demo_scenes")
     import bpy
-    summary = {"date": time.strftime("%Y-%m-%d %H:%M"), "res": a.res, "ref_spp": a.ref_spp, "cases": {}}
+    taa_set = {k: float(v) for k, v in (kv.split("=") for kv in a.taa_set.split(",") if kv.strip())}
+    if taa_set:
+        filters = importlib.import_module(pkg.__name__ + ".render.passes.filters")
+        filters.TAAPass.quality_ladder = tuple(dict(d, **taa_set) for d in filters.TAAPass.quality_ladder)
+    summary = {"date": time.strftime("%Y-%m-%d %H:%M"), "res": a.res, "ref_spp": a.ref_spp, "draws": a.draws,
+               "taa_set": taa_set, "cases": {}}
     for case in a.cases.split(","):
         scene_name, motion = case.split(":")
+        motion, _, amount = motion.partition("@")
         out = os.path.join("/tmp" if a.no_docs else os.path.join(REPO, "docs", "results"),
-                           f"animation_{scene_name}_{motion}")
+                           f"animation_{scene_name}_{motion}" + (f"_{amount}" if amount else ""))
         opts = gc.parse_args([scene_name, "--animation", motion, "--techniques", a.techniques, "--res", str(a.res),
                               "--anim-frames", str(a.frames), "--anim-hold", str(a.hold),
-                              "--anim-ref-spp", str(a.ref_spp), "--out", out], scene_optional=False)
+                              "--anim-ref-spp", str(a.ref_spp), "--anim-draws", str(a.draws), "--out", out]
+                             + (["--anim-amount", amount] if amount else []), scene_optional=False)
         sc = demo.build_demo(scene_name, resolution=a.res)
+        cam = sc.camera.data
+        # a pan's speed in pixels per frame at the viewed distance: amount / move x focal x width / 2
+        px_frame = (float(amount or 0.12) / a.frames * a.res / 2.0 / math.tan(cam.angle_x / 2.0)
+                    if motion == "pan" and cam.type == "PERSP" else None)
         try:
             t0 = time.perf_counter()
             res = gc.run_animation(opts, pkg=pkg, session=session, scene=sc)
@@ -60,10 +82,14 @@ def main():
             bpy.data.scenes.remove(sc)
         summary["cases"][case] = {
             "cycles": anim["cycles"], "trail_mask_pixels": anim["trail_mask_pixels"], "trail_kind": anim["trail_kind"],
+            "pan_px_per_frame": px_frame, "draws": anim.get("draws", 1),
             "techniques": {t: {k: v[k] for k in ("relmse_moving", "relmse_hold", "stability", "cycles_stability",
                                                   "stability_ratio", "hold_flicker", "frame_ms", "nonfinite_pixels")}
                            | {"trail_ratio_at_8": v["trail"].get("ratio_at_8"),
                               "recovered_after": v["trail"].get("recovered_after"),
+                              "trail_ratio_per_draw": v["trail"].get("ratio_at_8_per_draw"),
+                              "trail_ratio_after_stop": v["trail"].get("ratio_after_stop"),
+                              "stability_per_draw": v.get("stability_per_draw"),
                               "mean_ratio_last": v["mean_ratio"][-1],
                               "mean_ratio_hold": sum(v["mean_ratio"][anim["stop_frame"] + 1:])
                               / max(1, len(v["mean_ratio"][anim["stop_frame"] + 1:]))}
@@ -73,20 +99,30 @@ def main():
     with open(os.path.join(d, f"animation_{a.tag}.json"), "w") as f:
         json.dump(gc._clean_json(summary), f, indent=1)
     lines = [f"# Filters under motion ({a.tag}, {summary['date']}, {a.res} px, Cycles {a.ref_spp} spp + OIDN per frame)", "",
-             "Made by `scripts/bench_filters.py --tag " + a.tag + "`. Stability = mean |frame difference| over the moving "
+             "Made by `scripts/bench_filters.py --tag " + a.tag + (f" --draws {a.draws}" if a.draws > 1 else "")
+             + (f" --taa-set {a.taa_set}" if a.taa_set else "") + "`. Stability = mean |frame difference| over the moving "
              "frames, ours / Cycles'. Trail: error in the pixels disoccluded (relit, for a light move) over the last 8 "
-             "moving frames, 8 frames after the stop, over a still camera's level; recovered = first held frame within "
-             "1.5x. Brightness = mean of the image / Cycles' (held frames).", ""]
+             "moving frames, 8 frames after the stop, over a still camera's error on the same frame (same seeds); "
+             "recovered = first held frame within 1.5x. Brightness = mean of the image / Cycles' (held frames). "
+             f"Noise draws per run: {a.draws} (stability and trail: means over the draws; min-max of the single "
+             "draws in brackets).", ""]
     fmt = lambda v, f="{:.3f}": "–" if v is None else f.format(v)  # noqa: E731
     for case, c in summary["cases"].items():
+        speed = f"; {c['pan_px_per_frame']:.2f} px/frame" if c.get("pan_px_per_frame") else ""
         lines += [f"## {case} (Cycles stability {fmt(c['cycles']['stability'], '{:.4f}')}, noise floor "
-                  f"{fmt(c['cycles']['noise_floor'], '{:.4f}')}; trail mask {c['trail_mask_pixels']} px, {c['trail_kind']})", "",
+                  f"{fmt(c['cycles']['noise_floor'], '{:.4f}')}; trail mask {c['trail_mask_pixels']} px, {c['trail_kind']}"
+                  f"{speed})", "",
                   "| technique | relMSE moving | relMSE held | stability | ratio | trail +8 / still | recovered after | brightness held | ms/frame |",
                   "|---|---|---|---|---|---|---|---|---|"]
+        def spread(vals):
+            vals = [x for x in (vals or []) if x is not None]
+            return f" ({min(vals):.2f}-{max(vals):.2f})" if len(vals) > 1 else ""
         for t, v in c["techniques"].items():
             lines.append(f"| {t} | {fmt(v['relmse_moving'], '{:.4f}')} | {fmt(v['relmse_hold'], '{:.4f}')} | "
-                         f"{fmt(v['stability'], '{:.4f}')} | {fmt(v['stability_ratio'], '{:.2f}x')} | "
-                         f"{fmt(v['trail_ratio_at_8'], '{:.2f}x')} | {fmt(v['recovered_after'], '{}')} | "
+                         f"{fmt(v['stability'], '{:.4f}')} | {fmt(v['stability_ratio'], '{:.2f}x')}"
+                         f"{spread(v.get('stability_per_draw'))} | "
+                         f"{fmt(v['trail_ratio_at_8'], '{:.2f}x')}{spread(v.get('trail_ratio_per_draw'))} | "
+                         f"{fmt(v['recovered_after'], '{}')} | "
                          f"{fmt(v['mean_ratio_hold'])} | {fmt(v['frame_ms'], '{:.1f}')} |")
         lines.append("")
     with open(os.path.join(d, f"animation_{a.tag}.md"), "w") as f:

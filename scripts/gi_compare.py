@@ -38,8 +38,10 @@ ARGS
                         after the stop (10); --anim-amount X the size of the move (orbit 12
                         degrees, dolly/pan/light 0.15/0.12/0.15 x the viewed distance, a sun
                         30 degrees); --anim-ref-spp N Cycles spp per frame (256) and
-                        --anim-ref-denoise on|off (on: OpenImageDenoise); techniques default
-                        to SVGF,TAA and each technique's default quality
+                        --anim-ref-denoise on|off (on: OpenImageDenoise); --anim-draws N
+                        independent noise draws of the run (1; the trail and stability figures
+                        are their means); techniques default to SVGF,TAA and each technique's
+                        default quality
 
 Timing: a technique's ``time_ms`` is its per-frame time x samples; its one-time setup
 (scene export, GPU upload, BVH build, shader compilation) is ``setup_ms``, measured apart.
@@ -120,6 +122,7 @@ def parse_args(argv: list[str], scene_optional: bool):
     p.add_argument("--anim-amount", type=float, default=None)
     p.add_argument("--anim-ref-spp", type=int, default=256)
     p.add_argument("--anim-ref-denoise", choices=("on", "off"), default="on")
+    p.add_argument("--anim-draws", type=int, default=1)
     a = p.parse_args(argv)
     if a.ref_spp < 1 or a.frames < 1 or a.samples < 1:
         p.error("--ref-spp, --frames and --samples must be >= 1")
@@ -506,7 +509,8 @@ def run_animation(opts, *, pkg=None, session=None, scene=None) -> dict:
     quality = {t: quality.get(t, infos[t].default_quality) for t in wanted}
     spec = A.AnimationSpec(motion=opts.animation, move=opts.anim_frames, hold=opts.anim_hold,
                            amount=opts.anim_amount, ref_spp=opts.anim_ref_spp,
-                           ref_denoise=opts.anim_ref_denoise == "on", seed=opts.seed)
+                           ref_denoise=opts.anim_ref_denoise == "on", seed=opts.seed,
+                           draws=getattr(opts, "anim_draws", 1))
     log(f"animation '{spec.motion}' of scene '{scene.name}' at {w}x{h}: {spec.move} moving + {spec.hold} still "
         f"frames; Cycles {spec.ref_spp} spp{' + OIDN' if spec.ref_denoise else ''} per frame; {', '.join(wanted)}")
     res = A.run(scene, spec, wanted, reference=mods["reference"], export=mods["export"], session=session,

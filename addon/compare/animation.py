@@ -13,10 +13,27 @@ run reports
 * the **ghost trail**: the camera moves for ``move`` frames, then holds still for ``hold``
   frames; the *trail mask* is the final pose's pixels not visible from the pose ``trail_k``
   frames before the stop (for a light move: the pixels whose Cycles value changed by more
-  than 20 % over those frames). Its error on every held frame is compared with the *still
-  level*: the same technique rendered with the camera still at the final pose from the start
-  (same warm-up), mean of its last 4 frames, in the same mask. ``recovered_after`` is the
-  first held frame whose trail error is within ``RECOVERY_TOLERANCE`` x the still level.
+  than 20 % over those frames). Its error on every held frame ``t`` is compared with the
+  *still level* of that frame: the same technique rendered with the camera still at the final
+  pose from the start (same warm-up, as many frames), its error on the same frame ``t`` in the
+  same mask. ``ratio_at_8`` is that ratio 8 frames after the stop; ``recovered_after`` is the
+  first held frame within ``RECOVERY_TOLERANCE`` x its still level.
+
+  Why frame ``t`` against frame ``t`` (a paired comparison) and not against a still run's tail:
+  the session seeds a frame's noise with its frame counter, which both runs count alike (warm-up
+  included), so on held frame ``t`` both render the same pose with the same seeds and jitter;
+  only their histories differ, and what the history carries from before the stop is exactly
+  what the trail measures. Measured on the 48-px Cornell pan (43 trail pixels, TAA, 12 seed
+  offsets): the trail error at +8 and the still error of the same frame correlate at 0.91, the
+  per-seed ratio spreads 0.95-1.42x (sd 0.13) where the +8 frame against the mean of the last 4
+  frames of an 11-frame still run spread 0.66-1.68x; and that shorter run's level was not the
+  still level at all: the still error keeps falling after frame 10 (0.0199 over its frames 7-10,
+  0.0169 on frame 20), which biased the old ratio low by ~15 %.
+  ``draws`` > 1 repeats both runs with independent noise (each draw after the first starts in
+  the same sessions from a camera cut and a warm-up, as an F12 animation starts, so the frame
+  counter runs on) and reports the ratio of the mean trail error to the mean still error per
+  held frame (``ratio_at_8_per_draw`` keeps the single draws). A still run shorter than the
+  moving run (a caller's own) falls back to the mean of its last ``STILL_TAIL`` frames.
 
 Motions (``MOTIONS``): ``scene`` (the file's own animation, from ``frame_start``), ``orbit``
 (the camera turns about the vertical axis through the point it looks at, ``amount`` degrees),
@@ -70,6 +87,7 @@ class AnimationSpec:
     seed: int = 0
     warmup: bool = True        # the first frame runs the technique's warm-up (as an F12 animation does)
     still_run: bool = True     # render the still-camera run for the ghost-trail level
+    draws: int = 1             # independent noise draws of the (moving, still) pair; see the module doc
     trail_k: int = TRAIL_K
     amount_default: bool = field(default=False, init=False)
 
@@ -80,6 +98,8 @@ class AnimationSpec:
             raise ValueError(f"an animation needs >= 1 moving frame and >= 0 held frames (got {self.move}, {self.hold})")
         if self.ref_spp < 1:
             raise ValueError("the per-frame Cycles references need >= 1 spp")
+        if int(self.draws) < 1:
+            raise ValueError(f"an animation needs >= 1 noise draw (got {self.draws})")
         self.amount_default = self.amount is None
         if self.amount is None:
             self.amount = DEFAULT_AMOUNT[self.motion]
@@ -201,9 +221,9 @@ def relit(ref0, ref1, threshold: float = RELIT_THRESHOLD) -> np.ndarray:
 
 
 # ---------------------------------------------------------------- analysis (pure)
-def analyse(spec: AnimationSpec, ours: list, refs: list, masks: list, trail_mask, still: list | None,
-            cycles_noise_floor: float | None = None) -> dict:
-    """Numbers of one technique's run. ``ours``/``refs``: per-frame images; ``masks[t]``: the
+def _analyse_one(spec: AnimationSpec, ours: list, refs: list, masks: list, trail_mask, still: list | None,
+                 cycles_noise_floor: float | None = None) -> dict:
+    """Numbers of one technique's run (one noise draw). ``ours``/``refs``: per-frame images; ``masks[t]``: the
     pixels disoccluded at frame t (None at t = 0); ``trail_mask``: see the module doc;
     ``still``: the still-camera run's frames at the final pose (or None)."""
     n = len(ours)
@@ -243,15 +263,61 @@ def analyse(spec: AnimationSpec, ours: list, refs: list, masks: list, trail_mask
         trail["relmse_after_stop"] = per
         if still:
             sm = [masked_mean(relmse_map(s, refs[-1]), trail_mask) for s in still]
-            level = float(np.mean(sm[-STILL_TAIL:]))
             trail["still_relmse"] = sm
-            trail["still_level"] = level
-            trail["ratio_after_stop"] = [p / level if level > 0 else None for p in per]
-            rec = next((k for k, p in enumerate(per) if p <= RECOVERY_TOLERANCE * level), None)
-            trail["recovered_after"] = rec
-            k8 = min(8, len(per) - 1)
-            trail["ratio_at_8"] = per[k8] / level if level > 0 else None
-            trail["ratio_at_frame"] = k8
+            # paired (the still run is as long as the moving one): held frame t is compared
+            # with the still run's frame t, rendered with the same seeds; else (a shorter still
+            # run) with the mean of its last STILL_TAIL frames. See the module doc.
+            paired = len(still) == n
+            tail = float(np.mean(sm[-STILL_TAIL:]))
+            lv = [float(v) for v in sm[stop:]] if paired else [tail] * len(per)
+            trail["paired"] = paired
+            trail["still_after_stop"] = lv
+            trail["still_level"] = tail
+            _trail_ratios(trail, per, lv)
+    out["trail"] = trail
+    return out
+
+
+def _trail_ratios(trail: dict, per: list, lv: list):
+    trail["ratio_after_stop"] = [p / v if v > 0 else None for p, v in zip(per, lv)]
+    trail["recovered_after"] = next((k for k, (p, v) in enumerate(zip(per, lv)) if p <= RECOVERY_TOLERANCE * v),
+                                    None)
+    k8 = min(8, len(per) - 1)
+    trail["ratio_at_8"] = per[k8] / lv[k8] if lv[k8] > 0 else None
+    trail["ratio_at_frame"] = k8
+
+
+def analyse(spec: AnimationSpec, ours: list, refs: list, masks: list, trail_mask, still: list | None,
+            cycles_noise_floor: float | None = None, draws: list | None = None) -> dict:
+    """Numbers of one technique's run. ``ours``/``refs``: per-frame images; ``masks[t]``: the
+    pixels disoccluded at frame t (None at t = 0); ``trail_mask``: see the module doc;
+    ``still``: the still-camera run's frames at the final pose (or None); ``draws``: the
+    further noise draws as (ours, still) pairs. With draws, the per-frame lists are the first
+    draw's; relMSE moving/held, the stability figure and the trail error (moving and still,
+    per held frame) are means over all draws, and the trail ratios are ratios of those means."""
+    first = _analyse_one(spec, ours, refs, masks, trail_mask, still, cycles_noise_floor)
+    if not draws:
+        first["draws"] = 1
+        return first
+    runs = [first] + [_analyse_one(spec, o, refs, masks, trail_mask, s, cycles_noise_floor) for o, s in draws]
+    out = dict(first)
+    out["draws"] = len(runs)
+    for k in ("relmse_moving", "relmse_hold", "stability", "hold_flicker"):
+        vals = [r[k] for r in runs]
+        out[k] = None if any(v is None for v in vals) else float(np.mean(vals))
+    out["stability_per_draw"] = [r["stability_ratio"] for r in runs]
+    out["stability_ratio"] = out["stability"] / out["cycles_stability"] if out["cycles_stability"] > 0 else None
+    out["nonfinite_pixels"] = int(sum(r["nonfinite_pixels"] for r in runs))
+    out["max_value"] = float(max(r["max_value"] for r in runs))
+    trail = dict(first["trail"])
+    if all("relmse_after_stop" in r["trail"] for r in runs):
+        trail["relmse_after_stop"] = [float(v) for v in np.mean([r["trail"]["relmse_after_stop"] for r in runs], 0)]
+    if all("still_after_stop" in r["trail"] for r in runs):
+        lv = [float(v) for v in np.mean([r["trail"]["still_after_stop"] for r in runs], 0)]
+        trail["still_after_stop"] = lv
+        trail["still_level"] = float(np.mean([r["trail"]["still_level"] for r in runs]))
+        trail["ratio_at_8_per_draw"] = [r["trail"]["ratio_at_8"] for r in runs]
+        _trail_ratios(trail, trail["relmse_after_stop"], lv)
     out["trail"] = trail
     return out
 
@@ -424,27 +490,44 @@ def run(scene, spec: AnimationSpec, techniques, *, reference, export, session, w
     results, frames_out, still_out = {}, {}, {}
     for tech in techniques:
         q = qual.get(tech)
-        key = ("anim", tech, id(scene))
-        ours, ms = [], []
-        try:
+        q = q if q is not None else 1
+        key, skey = ("anim", tech, id(scene)), ("anim_still", tech, id(scene))
+        runs, ms, warm = [], [], [None, None]
+
+        def play(which, sd_of, draw):
+            # draw > 0 runs in the same session from a camera cut + warm-up (how an F12
+            # animation starts): the history restarts, the frame counter (the seed) runs on
+            imgs = []
             for i in range(spec.frames):
-                r = session.render(sds[i], tech, q if q is not None else 1, 1, keep_history=True,
-                                   warmup=bool(spec.warmup and i == 0), session=key)
-                ours.append(np.asarray(r.image, np.float32))
-                ms.append(float(r.frame_ms))
+                kw = {"camera_cut": True} if (draw > 0 and i == 0) else {}
+                r = session.render(sd_of(i), tech, q, 1, keep_history=True,
+                                   warmup=bool(spec.warmup and i == 0), session=key if which == 0 else skey, **kw)
+                imgs.append(np.asarray(r.image, np.float32))
+                if which == 0:
+                    ms.append(float(r.frame_ms))
+                if i == 0 and draw == 0:
+                    warm[which] = int(getattr(r, "warmup_frames", 0) or 0)
+            return imgs
+
+        still_wanted = spec.still_run and spec.hold > 0
+        try:
+            for d in range(int(spec.draws)):
+                ours = play(0, lambda i: sds[i], d)
+                # the still run: as many frames as the moving one, warm-up included, so frame t
+                # of both draws the same seeds (the session's frame counter): held frame t is paired
+                still = play(1, lambda i: sds[-1], d) if still_wanted else None
+                runs.append((ours, still))
         finally:
             _release(session, key)
-        still = None
-        if spec.still_run and spec.hold > 0:
-            skey = ("anim_still", tech, id(scene))
-            try:
-                still = [np.asarray(session.render(sds[-1], tech, q if q is not None else 1, 1, keep_history=True,
-                                                   warmup=bool(spec.warmup and i == 0), session=skey).image, np.float32)
-                         for i in range(spec.hold + 1)]
-            finally:
+            if still_wanted:
                 _release(session, skey)
-        a = analyse(spec, ours, refs, masks, trail_mask, still, noise_floor)
-        a["quality"] = q if q is not None else 1
+        ours, still = runs[0]
+        a = analyse(spec, ours, refs, masks, trail_mask, still, noise_floor, draws=runs[1:])
+        if still is not None:
+            # equal warm-up lengths: the two runs' frame t share their seeds
+            a["trail"]["warmup_frames"] = warm
+            a["trail"]["same_seeds"] = warm[0] == warm[1]
+        a["quality"] = q
         a["frame_ms"] = float(np.median(ms))
         results[tech] = a
         frames_out[tech] = ours
@@ -463,7 +546,8 @@ def run(scene, spec: AnimationSpec, techniques, *, reference, export, session, w
         "lamp": lamp.name if lamp is not None else None,
         "resolution": [width, height], "warmup_first_frame": spec.warmup,
         "trail_kind": trail_kind, "trail_k": k, "trail_mask_pixels": int(trail_mask.sum()),
-        "recovery_tolerance": RECOVERY_TOLERANCE, "still_tail_frames": STILL_TAIL,
+        "recovery_tolerance": RECOVERY_TOLERANCE, "still_tail_frames": STILL_TAIL, "draws": int(spec.draws),
+        "trail_level": "the still-camera run's error on the same frame (same seeds), means over the draws",
         "cycles": {"spp": spec.ref_spp, "denoise": "OpenImageDenoise (albedo+normal)" if spec.ref_denoise else "none",
                    "seed": spec.seed, "frames_rendered": len(ref_ms) - cached, "frames_cached": cached,
                    "time_ms_median": float(np.median(ref_ms)) if ref_ms else None,
@@ -511,8 +595,8 @@ def plot_png(anim: dict, path: str, title: str = "") -> str | None:
             xs = list(range(stop, stop + len(tr["relmse_after_stop"])))
             axs[2].plot(xs, tr["relmse_after_stop"], "-s", ms=3, color=c, alpha=0.6,
                         label=f"{t}: trail mask ({tr['mask_pixels']} px)")
-            if tr.get("still_level") is not None:
-                axs[2].axhline(tr["still_level"], color=c, ls="--", lw=1, label=f"{t}: still-camera level")
+            if tr.get("still_after_stop"):
+                axs[2].plot(xs, tr["still_after_stop"], "--", lw=1, color=c, label=f"{t}: still camera, same frames")
     cy = anim["cycles"]
     if cy.get("frame_diff"):
         axs[1].plot(x[1:], cy["frame_diff"][1:], "-", color="black",
@@ -569,7 +653,7 @@ def report_html(anim: dict, images: dict | None = None) -> str:
          f'over the moving frames, ours / Cycles&rsquo;; Cycles&rsquo; noise floor (two seeds, frame 0) '
          f'{_fmt(cy["noise_floor"])}. Trail: {html.escape(anim["trail_kind"])} pixels of the final pose '
          f'({anim["trail_mask_pixels"]} px, over the last {anim["trail_k"]} moving frames); their error after the '
-         f'stop against a still camera&rsquo;s (mean of its last {anim["still_tail_frames"]} frames); '
+         f'stop against a still camera&rsquo;s on the same frame (same seeds; {anim.get("draws", 1)} noise draw(s)); '
          f'&ldquo;recovered&rdquo; = within {anim["recovery_tolerance"]}&times;.</p>',
          '<table><tr><th class="l">technique</th><th>ms/frame</th><th>relMSE moving</th><th>relMSE held</th>'
          '<th>stability</th><th>Cycles</th><th>ratio</th><th>flicker held</th><th>trail +8 / still</th>'
