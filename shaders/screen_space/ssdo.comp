@@ -22,6 +22,10 @@
 // the tile that faces like the tracer, shrunk towards the mean of the pixel's on-screen
 // directions by the share of them the screen knows. Without SSDO_WORLD (or at a tile edge)
 // they are unknown: the bounce is the mean over the directions the screen knows.
+// Bright senders (SSDO_SENDERS): each receiver also picks u_sender_samples sender pixels in
+// proportion to their flux (ssdo_flux.comp) and weights both strategies by MIS (see
+// pick_sender): the sun-lit room's speckles were far-field directions meeting the small sun
+// patch on the floor, rare and large (docs/techniques/SSDO.md).
 // Output (at u_scale of the full resolution): rgb = mean sender radiance over all samples,
 // a = cosine-weighted fraction of directions that stay open (the GI_AO AOV). With
 // SSDO_WORLD, a pixel with off-screen directions leaves the SUM of its known senders'
@@ -42,12 +46,118 @@ uniform sampler2D u_trust;     // per sender pixel (fd, sigma) of view_trust (ss
 uniform int u_samples;
 uniform float u_radius;
 uniform float u_bias;
+// Diagnostic: which sample classes add their radiance (a sum of bits; the default, all): 1 near-field
+// senders, 2 far-field senders, 4 traced off-screen directions (ssdo_resolve.comp), 8 picked
+// senders. The counts (open, unknown) are unchanged, so the classes' images add up to the whole
+// (docs/techniques/SSDO.md: which samples made the sun-lit room's speckles).
+#ifndef SSDO_CLASSES
+#define SSDO_CLASSES 15
+#endif
+const float W_NEAR = (SSDO_CLASSES & 1) != 0 ? 1.0 : 0.0;
+const float W_FAR = (SSDO_CLASSES & 2) != 0 ? 1.0 : 0.0;
+const float W_SEND = (SSDO_CLASSES & 8) != 0 ? 1.0 : 0.0;
 
 #ifdef SSDO_WORLD
 uniform int u_world_tile;  // pixels per side of the tile that shares one traced direction
 layout(binding = 1, rgba32f) uniform writeonly image2D o_ray_o;  // per tile: origin, tracer pixel
 layout(binding = 2, rgba32f) uniform writeonly image2D o_ray_d;  // per tile: direction, 1 = traced
 layout(binding = 4, rg16f) uniform writeonly image2D o_part;     // per pixel: off-screen, unknown
+#endif
+
+#ifdef SSDO_SENDERS
+// Importance sampling of bright senders (multiple importance sampling with the cosine samples).
+// A small, bright on-screen sender (the sun patch on a floor) is met by few of the cosine
+// directions: rare large samples, the speckles of a few frames' mean. u_flux (ssdo_flux.comp,
+// summed upwards by ssdo_flux_reduce.comp) holds per sender pixel its flux (r) and area (g);
+// each receiver also picks u_sender_samples sender pixels in proportion to their flux by
+// descending the pyramid. Both strategies estimate the same integral over sender area,
+// E/pi = integral of L cos_r cos_s / (pi d^2) dA; in area measure the cosine strategy's pdf is
+// pc = cos_r cos_s / (pi d^2) and the sender strategy's pv = (flux / total) / area, and each
+// sample is weighted by the balance heuristic (Veach 1997): a cosine sample adds L n pc /
+// (n pc + m pv) (per direction, the sum divided by n as before), a picked sender
+// n L pc / (n pc + m pv) if the segment to it is free in the depth buffer (screen-space march).
+// Every sample stays bounded by its sender's radiance, as before (no 1/d^2 singularity).
+uniform sampler2D u_flux;   // rg: flux, area; mip levels (power-of-two image)
+uniform int u_flux_top;     // its coarsest level (1x1)
+uniform int u_sender_samples;
+
+float flux_total() { return texelFetch(u_flux, ivec2(0), u_flux_top).r; }
+
+// the pdf (area measure) of picking the sender pixel hp
+float sender_pdf(ivec2 hp, float total) {
+    vec2 fa = texelFetch(u_flux, hp, 0).rg;
+    return fa.y > 0.0 && total > 0.0 ? fa.x / (total * fa.y) : 0.0;
+}
+
+bool segment_free(vec3 O, vec3 Ps, float jitter);
+
+// MIS weight of a cosine sample that found sender pixel hp at Ph (normal Nh) from receiver P, N
+// (ray origin O). The sender strategy could have produced this sample only if the segment to Ph
+// is free: a sender the direction met only by SSDO's approximations (a point behind the visible
+// surface stands for the hidden side of an object: the front pixel is the sender) is one the
+// sender strategy never delivers, so it keeps weight 1 (checked only where the weight would drop).
+float cosine_weight(vec3 P, vec3 N, vec3 O, ivec2 hp, vec3 Ph, vec3 Nh, float total, float n, float m, float jitter) {
+    vec3 d = Ph - P;
+    float d2 = max(dot(d, d), 1e-8);
+    vec3 w = d * inversesqrt(d2);
+    float pc = max(dot(N, w), 0.0) * max(-dot(Nh, w), 0.0) / (PI * d2);
+    float pv = sender_pdf(hp, total);
+    float wc = n * pc + m * pv > 0.0 ? n * pc / (n * pc + m * pv) : 1.0;
+    if (pc <= 0.0 || (wc < 0.999 && !segment_free(O, Ph, jitter))) return 1.0;
+    return wc;
+}
+
+// a sender pixel in proportion to its flux: descend the pyramid from the top, choosing among the
+// (up to four) children with u (rescaled at each level)
+ivec2 pick_sender(float u) {
+    ivec2 t = ivec2(0);
+    for (int l = u_flux_top; l > 0; --l) {
+        ivec2 cs = textureSize(u_flux, l - 1);
+        vec4 w = vec4(0.0);
+        for (int k = 0; k < 4; ++k) {
+            ivec2 c = 2 * t + ivec2(k & 1, k >> 1);
+            if (all(lessThan(c, cs))) w[k] = texelFetch(u_flux, c, l - 1).r;
+        }
+        float sum = w.x + w.y + w.z + w.w;
+        if (sum <= 0.0) return ivec2(-1);
+        float x = u * sum;
+        int k = 0;
+        float acc = 0.0;
+        for (; k < 3; ++k) {
+            if (w[k] > 0.0 && x < acc + w[k]) break;
+            acc += w[k];
+        }
+        if (w[k] <= 0.0) {  // rounding carried x past the last child with flux
+            for (k = 3; k > 0 && w[k] <= 0.0; --k) {}
+            acc = 0.0;
+            for (int i = 0; i < k; ++i) acc += w[i];
+        }
+        u = clamp((x - acc) / max(w[k], 1e-30), 0.0, 0.99999994);
+        t = 2 * t + ivec2(k & 1, k >> 1);
+    }
+    return t;
+}
+
+// is the segment from O to the sender point Ps free in the depth buffer? (a coarse march, the
+// far field's thickness: a point behind the visible surface by less than the step plus 5 % of
+// its distance is blocked, unless that surface is the sender's own, near Ps)
+bool segment_free(vec3 O, vec3 Ps, float jitter) {
+    vec3 D = Ps - O;
+    float len = length(D);
+    const int M = 6;
+    float step = len / float(M);
+    for (int j = 0; j < M; ++j) {
+        float f = (float(j) + jitter) / float(M);
+        vec3 X = O + D * f;
+        vec2 sp = to_pixel(X);
+        if (!on_screen(sp)) continue;
+        vec4 hpos = texelFetch(u_gb_position, ivec2(sp), 0);
+        if (hpos.w < 0.0) continue;
+        float ds = view_depth(X), dh = view_depth(hpos.xyz);
+        if (dh < ds - u_bias && ds - dh < step + 0.05 * len * f && distance(hpos.xyz, Ps) > step) return false;
+    }
+    return true;
+}
 #endif
 
 #ifdef SSDO_WORLD
@@ -79,6 +189,10 @@ void main() {
     vec3 bounce = vec3(0.0);
     float open = 0.0, unknown = 0.0;
     int n = max(u_samples, 1);
+#ifdef SSDO_SENDERS
+    float total = live ? flux_total() : 0.0;
+    float nf = float(n), mf = float(max(u_sender_samples, 0));
+#endif
 #ifdef SSDO_WORLD
     // the first off-screen direction met from a random start in the sample order is the one
     // this pixel traces if it is its tile's tracer this frame
@@ -118,8 +232,12 @@ void main() {
             // blocked: the hiding pixel sends its direct-lit radiance if it faces P
             vec3 toP = g.P - h.P;
             if (dot(h.N, toP) > 0.0)
-                bounce += texelFetch(u_radiance, hp, 0).rgb *
-                          trust_weight(texelFetch(u_trust, hp, 0).rg, view_dir(h.P), normalize(toP));
+                bounce += W_NEAR * texelFetch(u_radiance, hp, 0).rgb *
+                          trust_weight(texelFetch(u_trust, hp, 0).rg, view_dir(h.P), normalize(toP))
+#ifdef SSDO_SENDERS
+                          * cosine_weight(g.P, N, O, hp, h.P, h.N, total, nf, mf, s)
+#endif
+                          ;
         } else {
             // open within the radius: march further (far field); a surface met there is
             // the sender, otherwise the direction stays open
@@ -138,11 +256,39 @@ void main() {
                 GPixel f = fetch_g(fp);
                 vec3 toP = g.P - f.P;
                 if (dot(f.N, toP) > 0.0)
-                    bounce += texelFetch(u_radiance, fp, 0).rgb *
-                              trust_weight(texelFetch(u_trust, fp, 0).rg, view_dir(f.P), normalize(toP));
+                    bounce += W_FAR * texelFetch(u_radiance, fp, 0).rgb *
+                              trust_weight(texelFetch(u_trust, fp, 0).rg, view_dir(f.P), normalize(toP))
+#ifdef SSDO_SENDERS
+                              * cosine_weight(g.P, N, O, fp, f.P, f.N, total, nf, mf, fract(s + 0.25))
+#endif
+                              ;
             }
         }
     }
+#ifdef SSDO_SENDERS
+    // the picked senders (see pick_sender)
+    if (live && total > 0.0) {
+        Rng sr = rng_init(uvec2(px), u_sample, 17u);
+        for (int j = 0; j < u_sender_samples; ++j) {
+            vec2 r2 = rng_next2(sr);
+            ivec2 sp = pick_sender(r2.x);
+            if (sp.x < 0 || any(greaterThanEqual(sp, ivec2(u_resolution)))) continue;
+            GPixel f = fetch_g(sp);
+            if (!f.valid) continue;
+            vec3 d = f.P - g.P;
+            float d2 = max(dot(d, d), 1e-8);
+            vec3 w = d * inversesqrt(d2);
+            float cr = dot(N, w), cs = -dot(f.N, w);
+            if (cr <= 0.0 || cs <= 0.0) continue;
+            float pc = cr * cs / (PI * d2);
+            float pv = sender_pdf(sp, total);
+            if (pv <= 0.0 || !segment_free(O, f.P, r2.y)) continue;
+            bounce += W_SEND * texelFetch(u_radiance, sp, 0).rgb *
+                      trust_weight(texelFetch(u_trust, sp, 0).rg, view_dir(f.P), -w) *
+                      (nf * pc / (nf * pc + mf * pv));
+        }
+    }
+#endif
 #ifdef SSDO_WORLD
     int T = clamp(u_world_tile, 1, 8);
     ivec2 lq = ivec2(gl_LocalInvocationID.xy);

@@ -37,6 +37,9 @@ void main() {
     vec3 bounce = s.rgb;
     ivec2 t = q / max(u_world_tile, 1);
     vec4 L = imageLoad(u_tile_L, t);
+#if defined(SSDO_CLASSES) && (SSDO_CLASSES & 4) == 0
+    L.rgb = vec3(0.0);  // diagnostic (ssdo.comp's SSDO_CLASSES): the traced radiance left out
+#endif
     bool used = false;
     if (L.a > 0.5) {
         int code = int(imageLoad(u_ray_o, t).w + 0.5);

@@ -10,7 +10,9 @@ with the shared ray tracer, one per tile of ``world_tile``² pixels and frame (t
 rotates per frame; its radiance stands for the tile's pixels that face alike, shrunk towards
 the mean of each pixel's known on-screen directions by the share of them it knows), the hit
 sending its direct light toward the receiver (lib/scene_rt.glsl); with ``world_rays`` 0 they are
-unknown and the bounce is the mean over the known ones) → ``ssdo_temporal`` → ``ssdo_blur`` →
+unknown and the bounce is the mean over the known ones); ``sender_samples`` sender pixels per
+receiver are also picked in proportion to their flux (importance sampling of bright senders such
+as a sun patch, combined with the directions by multiple importance sampling) → ``ssdo_temporal`` → ``ssdo_blur`` →
 ``ssdo_composite``
 (``color += albedo_d * bounce``; DIRECT already lights with the world, shadowed by its
 world-light maps). The fraction of directions that stay open is the ``GI_AO`` AOV.
@@ -26,11 +28,13 @@ Compared with Cycles "one_bounce" (and "full"). See docs/techniques/SSDO.md.
 | far_distance | 0–1e4 | far-field march length (0 = the scene's bounding diagonal) |
 | world_rays | 0–1 | trace off-screen directions through the scene (0: mean of the on-screen ones) |
 | world_tile | 1–8 | pixels per side of the tile that shares one traced direction per frame (1, 2, 4 or 8) |
+| sender_samples | 0–8 | senders picked per pixel and frame in proportion to their flux (MIS; 0 = off) |
 | blur_radius | 0–8 | bilateral kernel radius (pixels) |
 | max_history | 1–1024 | temporal frames averaged at most |
 
 Quality ladder (samples, radius, scale, world_rays, world_tile, blur): 0 = 4, 1.0, 0.5, 0, -, 3;
-1 = 8, 1.5, 1, 1, 8, 2; 2 = 16, 2.0, 1, 1, 4, 2; 3 = 32, 2.5, 1, 1, 2, 1.
+1 = 8, 1.5, 1, 1, 8, 2; 2 = 16, 2.0, 1, 1, 4, 2; 3 = 32, 2.5, 1, 1, 2, 1; sender_samples 2 at
+every level.
 """
 from __future__ import annotations
 
@@ -66,6 +70,8 @@ class SSDOPass(AOPass):
               "the mean of the on-screen ones)"),
         Param("world_tile", 4, 1, 8, "pixels per side of the tile that shares one traced direction per frame "
               "(rounded down to 1, 2, 4 or 8)"),
+        Param("sender_samples", 2, 0, 8, "senders picked per pixel and frame in proportion to their flux "
+              "(importance sampling of bright senders, combined with the directions by MIS; 0 = off)"),
     )
     quality_ladder = ({"samples": 4, "radius": 1.0, "scale": 0.5, "world_rays": 0},
                       {"samples": 8, "radius": 1.5, "scale": 1.0, "world_rays": 1, "world_tile": 8},
@@ -83,16 +89,21 @@ class SSDOPass(AOPass):
         # images are indexed by tile and sized like the output (a tile grid is never larger)
         self.ray_o, self.ray_d = f"{self.prefix}.ray_o", f"{self.prefix}.ray_d"
         self.tile_l, self.part = f"{self.prefix}.tile_l", f"{self.prefix}.part"
-        self.writes = self.writes + (self.trust, self.ray_o, self.ray_d, self.tile_l, self.part)
+        # sender_samples: the senders' flux pyramid (power-of-two, allocated here: ssdo_flux.comp)
+        self.flux = f"{self.prefix}.flux"
+        self._flux_tex = None
+        self.writes = self.writes + (self.trust, self.ray_o, self.ray_d, self.tile_l, self.part, self.flux)
         self.declared = self.declared + (
             Res(self.trust, components=2, dtype="f2"),
             Res(self.ray_o, scale="scale"), Res(self.ray_d, scale="scale"),
             Res(self.tile_l, dtype="f2", scale="scale", check="radiance"),
-            Res(self.part, components=2, dtype="f2", scale="scale"))
+            Res(self.part, components=2, dtype="f2", scale="scale"),
+            Res(self.flux, components=2, managed=False, check="none"))
 
     def execute(self, rc, frame):
         """Four dispatches, each depending on the previous one's image writes (barriers
-        between them): the senders' trust (full resolution), the screen-space samples (with
+        between them): the senders' trust (full resolution), with sender_samples the senders'
+        flux pyramid (``_flux``), the screen-space samples (with
         world_rays, also the tiles' rays and each pixel's counts), then with world_rays the
         tiles' rays through the scene and the resolve. Cost, sunlit_room 96 px q1 on
         llvmpipe: see docs/techniques/SSDO.md (timing)."""
@@ -104,13 +115,21 @@ class SSDOPass(AOPass):
         self.run(rc, tprog)
         rc.ctx.memory_barrier(TEXTURE_FETCH_BARRIER_BIT)
 
+        senders = int(self["sender_samples"])
+        if senders > 0:
+            flux, top = self._flux(rc, frame)
         world_rays = int(self["world_rays"])
-        prog = self.program(rc, self.shader, {"SSDO_WORLD": 1} if world_rays > 0 else None)
+        defines = {**({"SSDO_WORLD": 1} if world_rays > 0 else {}), **({"SSDO_SENDERS": 1} if senders > 0 else {})}
+        prog = self.program(rc, self.shader, defines or None)
         bind_frame(rc, prog, frame)
         units = Units(1)
         bind_gbuffer(rc, prog, units)
         units.tex(prog, "u_radiance", res[DIRECT_RADIANCE])
         units.tex(prog, "u_trust", res[self.trust])
+        if senders > 0:
+            units.tex(prog, "u_flux", flux)
+            set_uniform(prog, "u_flux_top", top)
+            set_uniform(prog, "u_sender_samples", senders)
         self.set_uniforms(prog)
         far = float(self["far_distance"])
         if far <= 0.0:
@@ -158,6 +177,48 @@ class SSDOPass(AOPass):
         res[self.tile_l].bind_to_image(3, read=True, write=False)
         res[self.part].bind_to_image(4, read=True, write=False)
         self.run(rc, resolve, size)
+
+    def _flux(self, rc, frame):
+        """The senders' flux pyramid: level 0 per G-buffer pixel (ssdo_flux.comp) in a
+        power-of-two image, then each level the sum of its children (ssdo_flux_reduce.comp).
+        Returns (texture, coarsest level)."""
+        import moderngl
+
+        w, h = rc.size
+        pw, ph = 1 << max(0, (w - 1).bit_length()), 1 << max(0, (h - 1).bit_length())
+        levels = max(pw, ph).bit_length()
+        tex = self._flux_tex
+        if tex is None or tuple(tex.size) != (pw, ph):
+            if tex is not None:
+                tex.release()
+            tex = rc.ctx.texture((pw, ph), 2, dtype="f4")
+            tex.build_mipmaps(0, levels - 1)
+            tex.filter = (moderngl.NEAREST_MIPMAP_NEAREST, moderngl.NEAREST)
+            tex.repeat_x = tex.repeat_y = False
+            self._flux_tex = tex
+        rc.resources[self.flux] = tex
+        fprog = self.program(rc, "screen_space/ssdo_flux.comp")
+        bind_frame(rc, fprog, frame)
+        units = Units(1)
+        bind_gbuffer(rc, fprog, units)
+        units.tex(fprog, "u_radiance", rc.resources[DIRECT_RADIANCE])
+        units.tex(fprog, "u_trust", rc.resources[self.trust])
+        tex.bind_to_image(0, read=False, write=True, level=0)
+        self.run(rc, fprog, (pw, ph))
+        red = rc.programs.compute("screen_space/ssdo_flux_reduce.comp")
+        for lv in range(1, levels):
+            rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT)  # level lv-1 stored by the last dispatch
+            tex.bind_to_image(0, read=True, write=False, level=lv - 1)
+            tex.bind_to_image(1, read=False, write=True, level=lv)
+            self.run(rc, red, (max(1, pw >> lv), max(1, ph >> lv)))
+        rc.ctx.memory_barrier(TEXTURE_FETCH_BARRIER_BIT)
+        return tex, levels - 1
+
+    def release(self):
+        if self._flux_tex is not None:
+            self._flux_tex.release()
+            self._flux_tex = None
+        super().release()
 
     def set_uniforms(self, prog):
         set_uniform(prog, "u_samples", int(self["samples"]))
