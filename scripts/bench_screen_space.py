@@ -168,6 +168,10 @@ def main(argv=None):
                 sp = sweep.equal_error_speedup(e["vs_one_bounce"]["relmse"], res.frame_ms * res.samples,
                                                [(c["spp"], c["time_ms"], c["relmse"]) for c in curves["one_bounce"]])
                 e["speedup_vs_one_bounce"] = sp
+                ind = res.aovs.get("GI_IndirectDiffuse")
+                if ind is not None:  # isolated bright pixels of the bounce (SSDO page: the sun-lit room)
+                    e["speckles"] = speckles(ind)
+                    e["speckles_cycles"] = speckles(refs["one_bounce"].image[..., :3] - refs["direct"].image[..., :3])
                 ao = res.aovs.get("GI_AO")
                 if ao is not None:
                     ao3 = np.repeat(ao[..., :1], 3, axis=2) if ao.shape[2] == 1 else ao[..., :3]
@@ -185,6 +189,8 @@ def main(argv=None):
                 msg = (f"{scene_name} {tech} q{q}: {res.frame_ms:.1f} ms/frame; vs one_bounce relMSE "
                        f"{e['vs_one_bounce']['relmse']:.4f} FLIP {e['vs_one_bounce']['flip']:.4f}; vs full "
                        f"{e['vs_full']['relmse']:.4f}")
+                if "speckles" in e:
+                    msg += f"; bounce speckles {e['speckles']} (Cycles {e['speckles_cycles']})"
                 if "ao_vs_cycles" in e:
                     msg += (f"; AO relMSE {e['ao_vs_cycles']['relmse']:.4f} FLIP {e['ao_vs_cycles']['flip']:.4f} "
                             f"(mean {e['ao_mean']:.3f} vs {e['ao_ref_mean']:.3f})")
@@ -199,6 +205,18 @@ def main(argv=None):
             json.dump(out, f, indent=1, default=float)
     log(f"wrote {jpath}")
     return out
+
+
+def speckles(img, k: float = 3.0, floor: float = 0.01, r: int = 3) -> int:
+    """Speckles of a bounce image: pixels whose luminance exceeds ``k`` x the median of their
+    (2r+1)^2 neighbourhood and that median by more than ``floor`` (docs/techniques/SSDO.md)."""
+    import numpy as np
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    x = np.asarray(img, np.float64)[..., :3]
+    lum = 0.2126 * x[..., 0] + 0.7152 * x[..., 1] + 0.0722 * x[..., 2]
+    med = np.median(sliding_window_view(np.pad(lum, r, mode="edge"), (2 * r + 1, 2 * r + 1)), axis=(-1, -2))
+    return int(((lum > k * med) & (lum - med > floor)).sum())
 
 
 def tables(tech: str, path: str, before: str = "") -> str:
