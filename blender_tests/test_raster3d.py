@@ -153,7 +153,8 @@ def test_thin_wall_leak_and_geometry_volume():
         leaks = {}
         for label, tech, props in (("RSM", "RSM", None), ("LPV", "LPV", None),
                                    ("LPV without geometry volume", "LPV", {"lpv": {"geometry_volume": False}}),
-                                   ("LPV with geometry rays", "LPV", {"lpv": {"geometry_rays": 2}})):
+                                   ("LPV with geometry rays", "LPV", {"lpv": {"geometry_rays": 2}}),
+                                   ("LPV, splat not blocked", "LPV", {"lpv": {"splat_blocking": False}})):
             img = _render(sd_dark, tech, 1, 2, props).image[..., :3]
             assert np.isfinite(img).all() and img.min() >= 0.0
             leaks[label] = float(img.mean() - ref_dark.mean()) / lit_level
@@ -166,6 +167,10 @@ def test_thin_wall_leak_and_geometry_volume():
         # the triangles' blockers (lpv_gv_rays.comp) add the walls no RSM or camera pixel
         # sees: measured 0.0005 against 0.0020 without them
         assert leaks["LPV with geometry rays"] <= 0.9 * leaks["LPV"]
+        # the trilinear injection's weights through the geometry volume: without them a VPL
+        # next to the thin wall splats its light into the dark room's cells
+        assert leaks["LPV, splat not blocked"] > 0.005, "the scene no longer makes the unblocked splat leak"
+        assert leaks["LPV"] <= 0.5 * leaks["LPV, splat not blocked"]
     finally:
         bpy.data.scenes.remove(dark)
         bpy.data.scenes.remove(lit)

@@ -28,7 +28,8 @@ leak, stability, lag.
   own change per frame and its second difference in time (flicker), ms per frame.
   ``--stability-quality``, ``--label`` and ``--set PASS.PARAM=V`` name and configure a run;
   runs are merged into ``<out>/stability.json`` by (technique, quality, label). Cycles'
-  frames are cached in ``--cache`` (the poses are deterministic).
+  frames are cached in ``--cache`` (the poses are deterministic). ``--stability-first F``
+  (screening) renders only the first F poses of the same path and prints, saves nothing.
 * ``variant``: a ``--set`` variant against the default on the demo scenes (relMSE vs the
   cached one_bounce reference, mean ratio), ``<out>/variants.json``.
 * ``testmotion``: test_raster3d's six moves started at offsets 0/3/6 (whole image and
@@ -220,7 +221,9 @@ def part_leak(o):
     if "LPV" in o.techniques.split(","):
         configs += [("LPV", {}, "LPV, geometry volume on"),
                     ("LPV", {"lpv": {"geometry_volume": False}}, "LPV, geometry volume off"),
-                    ("LPV", {"lpv": {"geometry_rays": 2}}, "LPV, geometry volume + triangles (geometry_rays 2)")]
+                    ("LPV", {"lpv": {"geometry_rays": 2}}, "LPV, geometry volume + triangles (geometry_rays 2)"),
+                    ("LPV", {"lpv": {"splat_blocking": False}}, "LPV, trilinear splat not blocked (diagnosis)"),
+                    ("LPV", {"lpv": {"trilinear_injection": False}}, "LPV, nearest-cell injection")]
     for q in (1,):
         for k, (tech, props, label) in enumerate(configs):
             sess = f"leak{k}"
@@ -316,8 +319,10 @@ def part_stability(o):
     n = o.stability_frames
     sc = demo_scenes.build_demo("cornell", resolution=32)
     cyc = _cycles_motion(o, sc, n)
+    if o.stability_first:  # screening: the first F of the n poses (same path, fewer frames)
+        cyc = cyc[: o.stability_first]
     d_cyc = [float(np.abs(a - b).mean()) for a, b in zip(cyc, cyc[1:])]
-    head = {"frames": n, "res": 32, "cycles_spp": 64,
+    head = {"frames": n, "res": 32, "cycles_spp": 64, "first": o.stability_first or n,
             "cycles": {"mean": float(np.mean(d_cyc)), "max": float(np.max(d_cyc)),
                        "diffs": [round(x, 6) for x in d_cyc]}}
     props = _overrides(o)
@@ -326,14 +331,15 @@ def part_stability(o):
         for q in [int(x) for x in o.stability_quality.split(",")]:
             ours, ind, gbs, ms, t0 = [], [], [], [], time.perf_counter()
             fin, mn = True, float("inf")
-            for k in range(n):
+            nk = o.stability_first or n
+            for k in range(nk):
                 move(sc, k, n)
                 sd = export_scene(reference.evaluated_depsgraph(sc))
                 if k == 0 and props:
                     S.render(sd, tech, q, 1, keep_history=True, session="stab")
                     _set_props("stab", props)
                 res = S.render(sd, tech, q, 1, keep_history=True, session="stab")
-                LOCK.frame(last=k == n - 1)
+                LOCK.frame(last=k == nk - 1)
                 img = res.image[..., :3]
                 fin &= bool(np.isfinite(img).all())
                 mn = min(mn, float(img.min()))
@@ -385,6 +391,8 @@ def part_stability(o):
                   f"{r['wall_s']:.0f} s",
                   flush=True)
     bpy.data.scenes.remove(sc)
+    if o.stability_first:  # screening runs are printed only (stability.json holds full runs)
+        return
     _merge_runs(os.path.join(o.out, "stability.json"), head, runs)
 
 
@@ -552,6 +560,8 @@ def main(argv=None):
     p.add_argument("--baselines", default="cycles,cycles_denoised,eevee")
     p.add_argument("--stability-frames", type=int, default=60)
     p.add_argument("--stability-quality", default="0,1,2,3", help="quality levels of the stability and lag parts")
+    p.add_argument("--stability-first", type=int, default=0,
+                   help="screening: render only the first F of the --stability-frames poses (printed, not saved)")
     p.add_argument("--lag-frames", type=int, default=30, help="frames after the light's step (lag part)")
     p.add_argument("--set", action="append", help="PASS.PARAM=VALUE override (stability, lag; repeatable)")
     p.add_argument("--label", default="", help="name of this configuration in stability.json / lag.json")

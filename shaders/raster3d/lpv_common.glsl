@@ -33,4 +33,36 @@ float lpv_member_margin(int c, vec3 p) {
 
 int lpv_slab_all(int c) { return c; }
 int lpv_slab_ring(int c) { return u_cascades + c - 1; }
+
+#ifdef LPV_CORNER_TRANSMITTANCE
+uniform sampler2DArray u_gv;
+uniform sampler2DArray u_gvd;  // per axis: blocking x the blockers' position (cell units)
+
+// Geometry-volume transmittance from a point g (cell units: the lookup point, or an
+// injected VPL's centre in front of its surface) to the centre of
+// corner cell cc: per axis a, the segment from g to cc's centre lies in the staggered cell
+// b_a between the two trilinear centres; its blockers (blocking B_a, mean position D_a / B_a
+// along the axis from the depth volume) cut the weight by 1 - B_a only when they lie on the
+// segment. A wall inside the staggered cell thus separates the corners on its far side from
+// the point and leaves those on the point's side (without the position, a wall crossing the
+// staggered cell blocked every corner along that axis, and the lookup fell back to all
+// corners: the roof's light showed on the tops of the sun-lit room's walls, relMSE 0.089).
+float corner_transmittance(int c, vec3 g, ivec3 b, ivec3 cc) {
+    float tr = 1.0;
+    for (int a = 0; a < 3; ++a) {
+        int fa = b[a];
+        if (fa < 0 || fa >= u_grid) continue;
+        ivec3 fi = cc;
+        fi[a] = fa;
+        ivec3 tc = ivec3(fi.xy, fi.z + c * u_grid);
+        float B = texelFetch(u_gv, tc, 0)[a];
+        if (B <= 1e-6) continue;
+        float D = texelFetch(u_gvd, tc, 0)[a] / B;
+        float lo = min(g[a], float(cc[a]) + 0.5), hi = max(g[a], float(cc[a]) + 0.5);
+        if (D < lo || D > hi) continue;
+        tr *= 1.0 - clamp(B, 0.0, 1.0);
+    }
+    return tr;
+}
+#endif
 #endif

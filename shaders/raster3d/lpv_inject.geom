@@ -1,10 +1,12 @@
 // lpv_inject.geom — routes a VPL (or a surfel) to its cells: one point per target cell,
 // gl_Layer = the layer of the 2D-array target.
 // Light (default): a Lambertian VPL of flux Φ is the intensity Φ/π·max(0, n·ω) (W/sr),
-// projected on 2-band SH, added to the one cell containing p + ½ cell · n
-// (LPV_SPLAT_NEAREST, the default: passes/lpv.py trilinear_injection False) or splatted
-// trilinearly over the cell centres around that point in front of its surface (it can
-// splat through a thin wall sideways), in the slab A_c of
+// projected on 2-band SH, added to the one cell containing p + u_inject_offset cell · n
+// (LPV_SPLAT_NEAREST: passes/lpv.py trilinear_injection False) or (the default) splatted
+// trilinearly over the cell centres around that point in front of its surface, each
+// centre's weight cut by the geometry volume's transmittance between the point and it
+// (u_use_gv: the volume is built before the injection; without it the splat crossed thin
+// walls sideways), in the slab A_c of
 // every cascade whose membership box holds p, and in the ring slab R_c of the cascade
 // whose box holds p while the next finer one does not (lpv_common.glsl).
 // LPV_GV (cascade u_only_cascade): the surfel's blocking of the flux crossing between two
@@ -14,9 +16,16 @@
 // along the axis, so the lookup knows on which side of a point inside the staggered cell
 // the blockers lie. A surfel wider than a cell is split into k x k sub-surfels (k <= 3) in
 // its tangent plane, so a coarse RSM or G-buffer leaves no holes in a fine cascade.
+#if !defined(LPV_GV) && !defined(LPV_SPLAT_NEAREST)
+#define LPV_CORNER_TRANSMITTANCE 1  // the splat's weights through the geometry volume
+uniform int u_use_gv;  // 1: the geometry volume (built before the injection) cuts the splat
+#endif
 #include "lib/sh.glsl"
 #include "raster3d/lpv_common.glsl"
 layout(points) in;
+#ifndef LPV_GV
+uniform float u_inject_offset;  // cells along n (passes/lpv.py inject_offset)
+#endif
 #ifdef LPV_GV
 layout(points, max_vertices = 27) out;
 uniform int u_only_cascade;
@@ -90,13 +99,13 @@ void main() {
 #endif
         if (inside) {
             vec3 gp = lpv_cell_coord(c, p);
-            vec3 gc = gp + 0.5 * n;
+            vec3 gc = gp + u_inject_offset * n;
 #ifdef LPV_SPLAT_NEAREST
             ivec3 cell = ivec3(floor(gc));
             if (a_c > 0.0) emit_cell(cell, lpv_slab_all(c), a_c * r, a_c * g, a_c * b);
             if (r_c > 0.0) emit_cell(cell, lpv_slab_ring(c), r_c * r, r_c * g, r_c * b);
 #else
-            // trilinear splat over the 8 cell centres around p + ½ cell · n, leaving out
+            // trilinear splat over the 8 cell centres around p + u_inject_offset cell · n, leaving out
             // centres behind the VPL's surface (its light would start behind the wall);
             // weights renormalised, so the VPL's flux is kept. A VPL moving with its light
             // moves its light between cells continuously (nearest-cell injection stepped).
@@ -109,6 +118,9 @@ void main() {
                 ivec3 o = ivec3(k & 1, (k >> 1) & 1, k >> 2);
                 float wk = (o.x == 1 ? t.x : 1.0 - t.x) * (o.y == 1 ? t.y : 1.0 - t.y) * (o.z == 1 ? t.z : 1.0 - t.z);
                 if (dot(vec3(base + o) + 0.5 - gp, n) <= 0.0) wk = 0.0;
+                // blocked: a centre the geometry volume separates from the VPL (a thin wall
+                // next to it) gets the share the blockers let through, as in the lookup
+                if (u_use_gv == 1 && wk > 0.0) wk *= corner_transmittance(c, gc, base, base + o);
                 w[k] = wk;
                 wsum += wk;
             }

@@ -4,7 +4,7 @@
 // the VPLs near the camera at the fine resolution, the rest from the coarser rings, each
 // VPL counted once. Within 2 cells of M_f's border the result blends linearly into the
 // next cascade's (no popping when the camera moves; the grids are snapped to their cells).
-// Per slab: SH intensity at P + ½ cell · N (normal offset), interpolated trilinearly over
+// Per slab: SH intensity at P + u_normal_offset cell · N (normal offset, default ¼), interpolated trilinearly over
 // the 8 nearest cell centres, leaving out centres behind the surface's plane and weighting
 // each by the geometry volume's transmittance between the cell of the lookup point and it
 // (what a thin wall separates is not interpolated across it, corner_transmittance); the
@@ -13,6 +13,7 @@
 // SH gradient aligned with N: the surface's own injected light) scales the slab's
 // irradiance by 1 - u_dampening · max(0, cos). Output rgb = E/π, a = 1; o_cascade: f plus
 // the blend towards f + 1 (the GI_LPV_Cascade debug view).
+#define LPV_CORNER_TRANSMITTANCE 1  // corner_transmittance, u_gv, u_gvd (lpv_common.glsl)
 #include "lib/sh.glsl"
 #include "raster3d/lpv_common.glsl"
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -23,41 +24,14 @@ uniform sampler2D u_gb_normal;
 uniform sampler2DArray u_lpv_r;
 uniform sampler2DArray u_lpv_g;
 uniform sampler2DArray u_lpv_b;
-uniform sampler2DArray u_gv;
-uniform sampler2DArray u_gvd;  // per axis: blocking x the blockers' position (cell units)
 uniform int u_use_gv;
 uniform float u_dampening;
-
-// Geometry-volume transmittance from the lookup point g (cell units) to the centre of
-// corner cell cc: per axis a, the segment from g to cc's centre lies in the staggered cell
-// b_a between the two trilinear centres; its blockers (blocking B_a, mean position D_a / B_a
-// along the axis from the depth volume) cut the weight by 1 - B_a only when they lie on the
-// segment. A wall inside the staggered cell thus separates the corners on its far side from
-// the point and leaves those on the point's side (without the position, a wall crossing the
-// staggered cell blocked every corner along that axis, and the lookup fell back to all
-// corners: the roof's light showed on the tops of the sun-lit room's walls, relMSE 0.089).
-float corner_transmittance(int c, vec3 g, ivec3 b, ivec3 cc) {
-    float tr = 1.0;
-    for (int a = 0; a < 3; ++a) {
-        int fa = b[a];
-        if (fa < 0 || fa >= u_grid) continue;
-        ivec3 fi = cc;
-        fi[a] = fa;
-        ivec3 tc = ivec3(fi.xy, fi.z + c * u_grid);
-        float B = texelFetch(u_gv, tc, 0)[a];
-        if (B <= 1e-6) continue;
-        float D = texelFetch(u_gvd, tc, 0)[a] / B;
-        float lo = min(g[a], float(cc[a]) + 0.5), hi = max(g[a], float(cc[a]) + 0.5);
-        if (D < lo || D > hi) continue;
-        tr *= 1.0 - clamp(B, 0.0, 1.0);
-    }
-    return tr;
-}
+uniform float u_normal_offset;  // cells along N (passes/lpv.py normal_offset)
 
 vec3 slab_irradiance(int slab, int c, vec3 P, vec3 N) {
     float cs = u_lpv_origin[c].w;
     vec3 gp = lpv_cell_coord(c, P);
-    vec3 g = gp + 0.5 * N;
+    vec3 g = gp + u_normal_offset * N;
     vec3 f = g - 0.5;
     ivec3 b = ivec3(floor(f));
     vec3 t = f - vec3(b);

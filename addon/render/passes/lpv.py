@@ -7,11 +7,14 @@
      inside the next coarser one's membership box (nested). Every corner is snapped to its
      cell size, so a camera move shifts a grid by whole cells only (no popping).
   2. **Injection** (raster, additive blending into a layered target, one point per RSM
-     texel, ``lpv_inject.geom`` picks ``gl_Layer``): each VPL of flux Φ is the Lambertian
-     intensity ``Φ/π·max(0, n·ω)`` projected on 2-band SH, added to the cell containing it
-     **shifted half a cell along n** (``trilinear_injection``: splatted trilinearly over the
-     cell centres around that point in front of its surface; off by default: a floor VPL
-     next to a thin wall splats through it sideways). Per cascade c two
+     texel, ``lpv_inject.geom`` picks ``gl_Layer``; after the geometry volume, step 3): each
+     VPL of flux Φ is the Lambertian intensity ``Φ/π·max(0, n·ω)`` projected on 2-band SH
+     at its position **shifted ``inject_offset`` (1) cell along n**, splatted trilinearly
+     over the cell centres around that point in front of its surface, each centre's weight
+     cut by the geometry volume's transmittance between the point and it (a VPL next to a
+     thin wall does not splat through it; the weights are renormalised).
+     ``trilinear_injection`` False: the one cell containing the point (a VPL moving with
+     its light then steps between cells: flicker). Per cascade c two
      volumes (slabs): ``A_c`` with every VPL inside c's membership box ``M_c`` (the grid
      shrunk by one cell), and the ring ``R_c`` (c ≥ 1) with the VPLs inside ``M_c`` but not
      ``M_{c-1}``. The lookup adds ``A_f + Σ_{c>f} R_c`` (f the finest cascade at the point),
@@ -41,7 +44,7 @@
   a 2D array it can.
 * ``LPVLookupPass``: per pixel, the irradiance from the cascades (``lpv_lookup.comp``:
   trilinear over the cell centres in front of the surface, weighted by the geometry
-  volume, normal offset half a cell, dampening); ``lpv.raw`` rgb = E/π for the screen-space
+  volume, normal offset ``normal_offset`` (0.25) cell, dampening); ``lpv.raw`` rgb = E/π for the screen-space
   composite, ``lpv.cascade`` = the cascade used (GI_LPV_Cascade).
 * ``LPVDebugPass``: a horizontal slice of one cascade's volume (GI_LPV_Slice).
 """
@@ -154,7 +157,9 @@ class LPVPass(Pass):
         Param("iteration_scale", 0.5, 0.05, 4.0, "propagation steps per cell of the grid side (steps = ceil(scale x grid))"),
         Param("inject_scale", 1.0, 0.0, 1.0, "weight of the injected (unpropagated) light in the result"),
         Param("flux_normalize", True, doc="scale each propagated cell so the clamped SH lobe carries its own flux (no energy gain per step)"),
-        Param("trilinear_injection", False, doc="splat each VPL over the 8 cells around it (in front of its surface; crosses thin walls sideways: two_rooms leak 0.0000 -> 0.0055 at 48 px); False: the one cell containing it"),
+        Param("trilinear_injection", True, doc="splat each VPL over the 8 cells around it (in front of its surface, weights cut by the geometry volume: splat_blocking); False: the one cell containing it (a VPL moving with its light steps between cells)"),
+        Param("inject_offset", 1.0, 0.0, 2.0, "a VPL is injected at its position plus this many cells along its normal (0.5 before 2026-12-02: a surface's own light lit it at fine levels)"),
+        Param("splat_blocking", True, doc="the trilinear splat's weights through the geometry volume (False: it crosses thin walls sideways, two_rooms leak 0.0000 -> 0.0055 at 48 px)"),
         Param("soft_cascades", True, doc="a VPL's share in a cascade ramps over 2 cells at its border (False: in or out, a moving cascade pops)"),
         Param("geometry_rays", 0, 0, 4, "geometry volume from the scene's triangles too: N x N rays per staggered cell (0 = only the RSM and G-buffer surfels)"),
         Param("geometry_surfels", True, doc="geometry volume from the RSM texels and G-buffer pixels (False: from the rays only)"),
@@ -223,22 +228,11 @@ class LPVPass(Pass):
         n_vpl = int(atlas.size[0] * atlas.size[1])
         for u, name in enumerate((RSM_POS, RSM_NRM, RSM_FLUX), start=1):
             res[name].use(u)
-        # injection: one point per RSM texel, additive
-        defs = {**({} if self["trilinear_injection"] else {"LPV_SPLAT_NEAREST": 1}),
-                **({} if self["soft_cascades"] else {"LPV_HARD_CASCADES": 1})}
-        prog = self._inject_program(rc, defs or None, atlas.size[0], grid)
-        if self.vao is None or self._vao_prog is not prog:
-            if self.vao is not None:
-                self.vao.release()
-            self.vao = ctx.vertex_array(prog, [])
-            self._vao_prog = prog
         ctx.disable(moderngl.DEPTH_TEST)
         ctx.enable(moderngl.BLEND)
         ctx.blend_func = moderngl.ONE, moderngl.ONE
-        self.fbo.use()
-        self.fbo.clear(0.0, 0.0, 0.0, 0.0)
-        ctx.viewport = (0, 0, G, G)
-        self.vao.render(mode=moderngl.POINTS, vertices=n_vpl)
+        # the geometry volume first (the trilinear injection's weights read it): one point per
+        # RSM texel and per G-buffer pixel, additive
         use_gv = bool(self["geometry_volume"])
         self.gv_fbo.use()
         self.gv_fbo.clear(0.0, 0.0, 0.0, 0.0)
@@ -275,6 +269,32 @@ class LPVPass(Pass):
             rc.dispatch(gp, (G + 3) // 4, (G + 3) // 4, (G * C + 3) // 4)
             # its stores before the propagation's and the lookup's texel fetches
             ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT | TEXTURE_FETCH_BARRIER_BIT)
+        # light injection: one point per RSM texel, additive (framebuffer writes of the geometry
+        # volume are visible to this draw's texel fetches; the rays' image stores got a barrier)
+        defs = {**({} if self["trilinear_injection"] else {"LPV_SPLAT_NEAREST": 1}),
+                **({} if self["soft_cascades"] else {"LPV_HARD_CASCADES": 1})}
+        prog = self._inject_program(rc, defs or None, atlas.size[0], grid)
+        if self.vao is None or self._vao_prog is not prog:
+            if self.vao is not None:
+                self.vao.release()
+            self.vao = ctx.vertex_array(prog, [])
+            self._vao_prog = prog
+        set_uniform(prog, "u_inject_offset", float(self["inject_offset"]))
+        if self["trilinear_injection"]:  # the splat's weights through the blockers (units 4, 5)
+            self.gv.use(4)
+            self.gvd.use(5)
+            set_uniform(prog, "u_gv", 4)
+            set_uniform(prog, "u_gvd", 5)
+            set_uniform(prog, "u_use_gv", 1 if use_gv and self["splat_blocking"] else 0)
+        for u, name in enumerate((RSM_POS, RSM_NRM, RSM_FLUX), start=1):
+            res[name].use(u)  # the G-buffer surfels' pass bound units 1-2 to the G-buffer
+        ctx.enable(moderngl.BLEND)
+        ctx.blend_func = moderngl.ONE, moderngl.ONE
+        self.fbo.use()
+        self.fbo.clear(0.0, 0.0, 0.0, 0.0)
+        ctx.viewport = (0, 0, G, G)
+        self.vao.render(mode=moderngl.POINTS, vertices=n_vpl)
+        ctx.disable(moderngl.BLEND)
         prop = rc.programs.compute("raster3d/lpv_propagate.comp")
         grid.uniforms(prop)
         set_uniform(prop, "u_slabs", S)
@@ -352,7 +372,8 @@ class LPVLookupPass(Pass):
     writes = ("lpv.raw", "lpv.cascade")
     declared = (Res("lpv.raw", check="radiance"), Res("lpv.cascade", dtype="f2", check="radiance"))
     history_resets = frozenset()
-    params = (Param("dampening", 0.0, 0.0, 1.0, "scale of light flowing away along the normal (self-illumination)"),)
+    params = (Param("dampening", 0.0, 0.0, 1.0, "scale of light flowing away along the normal (self-illumination)"),
+              Param("normal_offset", 0.25, 0.0, 2.0, "lookup point offset along the normal, in cells of the cascade read (0.5 before 2026-12-02)"))
 
     def __init__(self, quality=None, *, lpv: LPVPass | None = None, **kw):
         super().__init__(quality, **kw)
@@ -372,6 +393,7 @@ class LPVLookupPass(Pass):
         set_uniform(prog, "u_gvd", 7)
         set_uniform(prog, "u_use_gv", 1 if (self.lpv is None or self.lpv["geometry_volume"]) else 0)
         set_uniform(prog, "u_dampening", float(self["dampening"]))
+        set_uniform(prog, "u_normal_offset", float(self["normal_offset"]))
         res["lpv.raw"].bind_to_image(0, read=False, write=True)
         res["lpv.cascade"].bind_to_image(1, read=False, write=True)
         rc.dispatch(prog, *rc.groups(8))

@@ -14,13 +14,16 @@ See docs/techniques/LPV.md.
 | cascades | 1–4 | nested cascades, cell size doubling |
 | cell_size | 0–100 | finest cell size (0 = the coarsest cascade covers the scene) |
 | geometry_volume | bool | fuzzy occlusion by the RSM and G-buffer surfels |
-| trilinear_injection | bool | splat each VPL over its 8 cells (off: it leaks through thin walls) |
+| trilinear_injection | bool | splat each VPL over its 8 cells (default on; off: the one cell, steps as the light moves) |
+| splat_blocking | bool | the splat's weights through the geometry volume (off: it leaks through thin walls) |
+| inject_offset | 0–2 | cells along the VPL's normal where it is injected (default 1) |
 | soft_cascades | bool | a VPL's share in a cascade ramps over 2 cells at its border |
 | geometry_rays | 0–4 | N×N rays per staggered cell add the triangles' blockers (0: off) |
 | geometry_surfels | bool | blockers from the surfels (False with rays: rays only) |
 | iteration_scale | 0.05–4 | propagation steps per cell of the grid side |
 | inject_scale | 0–1 | weight of the unpropagated injected light in the result |
 | dampening | 0–1 | scale of light flowing away along the normal |
+| normal_offset | 0–2 | cells along the surface normal where the lookup reads (default 0.25) |
 | debug_cascade, debug_height | | the slice GI_LPV_Slice shows |
 
 Quality ladder (RSM px, grid, cascades): 0 = 64, 16, 2; 1 = 128, 24, 3; 2 = 256, 32, 3;
