@@ -189,6 +189,10 @@ class Session:
                 break
             is_warm = warm_done < n_warm
             k = self.acc_count
+            # jitter: the accumulation index, so a render that does not continue an accumulation
+            # (an animation frame, a moved viewport frame) is at the pixel centre; warm-up frames
+            # take the running counter. TAA is therefore un-jittered under motion: jittering it by
+            # the running counter was measured farther from Cycles (docs/techniques/TAA.md)
             jx, jy = _r2(self.sample_counter if is_warm else k)
             jit = np.eye(4)
             jit[0, 3] = 2.0 * jx / size[0]
