@@ -227,17 +227,22 @@ def leak(o, out):
 
 
 def stability(o, out, frames=60):
+    """60 frames, moving light and camera, one frame each with history kept (as the viewport
+    and an animation after its first frame); the first frame needs no warm-up (the injection
+    converges within a reset frame). DIRECT runs the same frames in the same run: its steps
+    are the G-buffer's own (edges at 32 px), the floor under any technique built on it."""
     import bpy
     import numpy as np
     from gi_preview.blender import demo_scenes, reference
     from gi_preview.blender.export import export_scene
     from gi_preview.render import session
 
+    q = o.stability_quality
     sc = demo_scenes.build_demo("cornell", resolution=32)
     light = next(ob for ob in sc.objects if ob.type == "LIGHT")
     cam = sc.camera
     l0, c0 = light.location.copy(), cam.location.copy()
-    ours, cyc, mins, finite, ms = [], [], [], True, []
+    ours, direct, cyc, mins, finite, ms = [], [], [], [], True, []
     for k in range(frames):
         s = k / 10.0  # the 6-frame test's path, 10 times finer
         light.location.x = l0.x - 0.3 + 0.12 * s
@@ -245,21 +250,32 @@ def stability(o, out, frames=60):
         cam.location.x = c0.x + 0.05 * s
         cam.location.z = 1.0 + 0.02 * s
         sd = export_scene(reference.evaluated_depsgraph(sc))
-        r = session.render(sd, "VXGI", 1, 1, keep_history=True, session="bench_vxgi_motion")
+        r = session.render(sd, "VXGI", q, 1, keep_history=True, session="bench_vxgi_motion")
         img = r.image[..., :3]
         finite &= bool(np.isfinite(img).all())
         mins.append(float(img.min()))
         ms.append(r.frame_ms)
         ours.append(img)
+        direct.append(session.render(sd, "DIRECT", q, 1, keep_history=True, session="bench_vxgi_direct").image[..., :3])
         cyc.append(reference.render_cycles(sc, 64, "full")[0][..., :3])
     session.release_session("bench_vxgi_motion")
+    session.release_session("bench_vxgi_direct")
     bpy.data.scenes.remove(sc)
-    d_ours = [float(np.abs(a - b).mean()) for a, b in zip(ours, ours[1:])]
-    d_cyc = [float(np.abs(a - b).mean()) for a, b in zip(cyc, cyc[1:])]
-    row = {"frames": frames, "finite": finite, "min": min(mins), "ours_max_diff": max(d_ours),
+
+    def steps(seq):
+        return [float(np.abs(a - b).mean()) for a, b in zip(seq, seq[1:])]
+    d_ours, d_dir, d_cyc = steps(ours), steps(direct), steps(cyc)
+    row = {"frames": frames, "quality": q, "finite": finite, "min": min(mins), "ours_max_diff": max(d_ours),
            "ours_mean_diff": float(np.mean(d_ours)), "cycles_max_diff": max(d_cyc),
-           "cycles_mean_diff": float(np.mean(d_cyc)), "frame_ms_median": float(np.median(ms)),
-           "ours_diffs": [round(x, 5) for x in d_ours], "cycles_diffs": [round(x, 5) for x in d_cyc]}
+           "cycles_mean_diff": float(np.mean(d_cyc)), "direct_max_diff": max(d_dir),
+           "direct_mean_diff": float(np.mean(d_dir)), "first_step": d_ours[0], "cycles_first_step": d_cyc[0],
+           "ours_max_after_first": max(d_ours[1:]),
+           "above_cycles_max": int(sum(d > max(d_cyc) for d in d_ours)),
+           "direct_above_cycles_max": int(sum(d > max(d_cyc) for d in d_dir)),
+           "argmax": int(np.argmax(d_ours)), "direct_argmax": int(np.argmax(d_dir)),
+           "frame_ms_median": float(np.median(ms)),
+           "ours_diffs": [round(x, 5) for x in d_ours], "direct_diffs": [round(x, 5) for x in d_dir],
+           "cycles_diffs": [round(x, 5) for x in d_cyc]}
     print(json.dumps(row), flush=True)
     return row
 
@@ -385,13 +401,20 @@ def write_md(path, data, o):
             L.append(f"| {r['quality']} | {r['config']} | {_f(r['dark_mean'])} | {_f(r['cycles_dark_mean'])} | "
                      f"{_f(r['leak'])} |")
         L.append("")
-    if "stability" in data:
-        s = data["stability"]
-        L += ["## Stability: 60 frames, moving light and camera (cornell, 32 px, q1)", "",
+    for key in sorted(k for k in data if k.startswith("stability")):
+        s = data[key]
+        q = s.get("quality", 1)
+        L += [f"## Stability: 60 frames, moving light and camera (cornell, 32 px, q{q})", "",
               f"finite: {s['finite']}, minimum {s['min']:.3g}; frame-to-frame mean |diff|: ours max "
               f"{s['ours_max_diff']:.4f} (mean {s['ours_mean_diff']:.4f}), Cycles 64 spp max "
               f"{s['cycles_max_diff']:.4f} (mean {s['cycles_mean_diff']:.4f}); median frame "
-              f"{s['frame_ms_median']:.0f} ms.", ""]
+              f"{s['frame_ms_median']:.0f} ms."]
+        if "direct_max_diff" in s:
+            L += [f"First step {s['first_step']:.4f} (Cycles {s['cycles_first_step']:.4f}); largest after it "
+                  f"{s['ours_max_after_first']:.4f}; {s['above_cycles_max']} of {s['frames'] - 1} steps above Cycles' "
+                  f"largest. DIRECT in the same run: max {s['direct_max_diff']:.4f} (mean {s['direct_mean_diff']:.4f}), "
+                  f"{s['direct_above_cycles_max']} steps above Cycles' largest."]
+        L.append("")
     if "sweep" in data:
         L += ["## Demo scenes (scripts/gi_compare.py)", "",
               "| scene | technique | q | reference | relMSE | FLIP | ms/frame | setup ms | speed-up vs Cycles |",
@@ -416,6 +439,7 @@ def main(argv=None):
     p.add_argument("--img-res", type=int, default=40)
     p.add_argument("--img-quality", type=int, default=0)
     p.add_argument("--res", type=int, default=48)
+    p.add_argument("--stability-quality", type=int, default=1, help="quality level of --stability")
     p.add_argument("--qualities", default="0,1,2,3", help="quality levels of --accuracy and --sweep (--leak: those <= 1)")
     p.add_argument("--ref-spp", type=int, default=128)
     p.add_argument("--samples", type=int, default=4)
@@ -441,7 +465,8 @@ def main(argv=None):
             return
     t0 = time.time()
     for s in chosen:
-        data[s] = {"audit": audit, "accuracy": accuracy, "leak": leak, "stability": stability, "sweep": sweep}[s](o, o.out)
+        key = s if s != "stability" or o.stability_quality == 1 else f"stability_q{o.stability_quality}"
+        data[key] = {"audit": audit, "accuracy": accuracy, "leak": leak, "stability": stability, "sweep": sweep}[s](o, o.out)
         with open(path, "w") as f:
             json.dump(data, f, indent=1)
     data["settings"] = {"res": o.res, "ref_spp": o.ref_spp, "samples": o.samples, "sweep_res": o.sweep_res,

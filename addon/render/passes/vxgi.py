@@ -20,7 +20,9 @@
   (the shadow atlas; suns through their RSM view, which covers the whole scene while the
   atlas' sun cascades cover only the camera's frustum), optionally plus last frame's
   indirect irradiance and sky light gathered by six cones per side through the history
-  volume (``multi_bounce``). Writes level 0 of ``vxgi.radiance``: six directional volumes
+  volume (``multi_bounce``); after a history reset, ``reset_bounces`` runs within the frame, each
+  gathering from the previous run's volume, so the first frame is converged (no warm-up
+  frames). Writes level 0 of ``vxgi.radiance``: six directional volumes
   (the radiance each voxel emits towards ±x, ±y, ±z: the surface side facing that way;
   a dilated voxel shows only the side it lies on; opacity at least ``edge_opacity``),
   then builds the anisotropic mips (``shaders/vxgi/mip.comp``, front-to-back compositing of
@@ -245,16 +247,21 @@ class VoxelInjectPass(Pass):
               "projected coverage |n.D|, at least edge_opacity (else 1: opaque from every side)"),
         Param("edge_opacity", 0.1, 0.0, 1.0, "smallest level-0 opacity of an occupied voxel towards any "
               "direction (an edge-on surface shows black at this opacity; against leaks)"),
+        Param("reset_bounces", 6, 1, 16, "injection runs within the frame after a history reset (first frame, "
+              "camera cut, parameter change), one bounce more each: the volume starts converged instead of "
+              "building up one bounce per frame (1 = the old build-up)"),
     )
     # the voxels' own gather (multi-bounce, sky) steps a whole cone diameter: it runs for
     # every occupied voxel, and later bounces carry less of the image
-    quality_ladder = ({"step": 1.0}, {"step": 1.0}, {"step": 1.0}, {"step": 1.0})
+    quality_ladder = ({"step": 1.0, "reset_bounces": 6}, {"step": 1.0, "reset_bounces": 6},
+                      {"step": 1.0, "reset_bounces": 8}, {"step": 1.0, "reset_bounces": 8})
 
     def __init__(self, quality=None, *, voxelize: VoxelizePass, **props):
         super().__init__(quality, **props)
         self.voxelize = voxelize
         self.prev_grid = None
         self.zeros = None  # a zero-filled buffer of level 0's size: clears it by a texture upload
+        self.reset_runs = 0  # injection runs in the last frame (> 1: a reset frame that converged in-frame)
 
     def resources(self):
         v = self.voxelize
@@ -271,13 +278,14 @@ class VoxelInjectPass(Pass):
         n, C = grid.n, grid.cascades
         prog = rc.programs.compute("vxgi/inject.comp")
         rc.scene.bind(prog)
-        units = Units(1)
         prev = self.prev_grid if (self.history_valid and self.prev_grid is not None
                                   and self.prev_grid.n == n and self.prev_grid.cascades == C) else None
-        (prev or grid).uniforms(prog)
         if "u_cur_origin" in prog:
             prog["u_cur_origin"].write(grid.array().tobytes())
-        units.tex(prog, "u_vx_radiance", res[RADIANCE + "@prev"])
+        units = Units(1)
+        unit_volume = units.next  # the volume the cones gather from (last frame's, or the last iteration's)
+        units.next += 1
+        set_uniform(prog, "u_vx_radiance", unit_volume)
         if ATLAS in res and VIEWS in res:
             res[ATLAS].use(units.next)
             set_uniform(prog, "u_shadow_atlas", units.next)
@@ -292,17 +300,12 @@ class VoxelInjectPass(Pass):
         if "u_rsm_light" in prog:
             prog["u_rsm_light"].write(li.tobytes())
         world = np.asarray(scene.world.color if scene.world is not None else (0, 0, 0), np.float64)
-        bounce = bool(self["multi_bounce"]) and prev is not None
-        world_on = float(world.max()) > 0.0 and prev is not None
-        set_uniform(prog, "u_bounce", 1 if bounce else 0)
-        set_uniform(prog, "u_gather", 1 if (bounce or world_on) else 0)
+        multi, world_lit = bool(self["multi_bounce"]), float(world.max()) > 0.0
         set_uniform(prog, "u_world", tuple(float(x) for x in world))
         set_uniform(prog, "u_vx_opacity_scale", float(self["opacity_scale"]))
         set_uniform(prog, "u_shadow_offset", float(self["shadow_offset"]))
         set_uniform(prog, "u_normal_offset", float(self["normal_offset"]))
         set_uniform(prog, "u_step", float(self["step"]))
-        md = float(self["max_distance"])
-        set_uniform(prog, "u_max_distance", md if md > 0 else float((prev or grid).extent()))
         set_uniform(prog, "u_mesh_exact_max", int(self["mesh_exact_max"]))
         set_uniform(prog, "u_directional_opacity", 1 if self["directional_opacity"] else 0)
         set_uniform(prog, "u_edge_opacity", float(self["edge_opacity"]))
@@ -313,18 +316,50 @@ class VoxelInjectPass(Pass):
         set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
         res[VOXELS].bind_to_storage_buffer(BINDING_RECORDS)
         self.voxelize.list.bind_to_storage_buffer(BINDING_LIST)
-        tex = res[RADIANCE]
-        # clear level 0 (what was stored in it two frames ago), then write the occupied voxels
         nbytes = n * n * n * C * 6 * 8
         if self.zeros is None or self.zeros.size != nbytes:
             if self.zeros is not None:
                 self.zeros.release()
             self.zeros = rc.ctx.buffer(reserve=nbytes)
             self.zeros.clear()
-        rc.ctx.memory_barrier(TEXTURE_UPDATE_BARRIER_BIT)
-        tex.write(self.zeros)
-        tex.bind_to_image(0, read=False, write=True, level=0)
-        rc.dispatch(prog, (n * n * n * C + 255) // 256)
+        cur, other = res[RADIANCE], res[RADIANCE + "@prev"]
+        # After a history reset (first frame, camera cut, parameter change) there is no last
+        # frame to gather from: run the injection `reset_bounces` times within this frame, each
+        # run gathering one bounce more from the volume the previous run wrote (ping-pong
+        # between this frame's volume and its @prev twin, whose content is not needed on a
+        # reset; the last run writes this frame's). The first frame is then as converged as
+        # the F12 warm-up used to make it after as many frames, for the viewport and every
+        # path alike, and the pass needs no warm-up frames.
+        gathers = multi or world_lit
+        runs = 1 if (prev is not None or not gathers) else max(1, int(self["reset_bounces"]))
+        if not multi:
+            runs = min(runs, 2)  # sky light only: one gather is all there is
+        for k in range(runs):
+            last = k == runs - 1
+            dst = cur if (runs - 1 - k) % 2 == 0 else other
+            src = other if dst is cur else cur
+            if prev is not None:  # a normal frame: last frame's volume on its own grid
+                prev.uniforms(prog)
+                src_tex, gather = res[RADIANCE + "@prev"], True
+            else:
+                grid.uniforms(prog)
+                src_tex, gather = src, k > 0
+            src_tex.use(unit_volume)
+            set_uniform(prog, "u_bounce", 1 if (multi and gather) else 0)
+            set_uniform(prog, "u_gather", 1 if (gathers and gather) else 0)
+            md = float(self["max_distance"])
+            set_uniform(prog, "u_max_distance", md if md > 0 else float((prev or grid).extent()))
+            set_uniform(prog, "u_keep_records", 0 if last else 1)
+            if k > 0:  # the previous run's level 0 (image stores) -> its mips -> this run's sampler
+                rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT | TEXTURE_FETCH_BARRIER_BIT)
+                build_mips(rc, src, grid)
+                rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT | TEXTURE_FETCH_BARRIER_BIT)
+            # clear level 0 (what was stored in it two frames ago), then write the occupied voxels
+            rc.ctx.memory_barrier(TEXTURE_UPDATE_BARRIER_BIT)
+            dst.write(self.zeros)
+            dst.bind_to_image(0, read=False, write=True, level=0)
+            rc.dispatch(prog, (n * n * n * C + 255) // 256)
+        self.reset_runs = runs
         self.prev_grid = grid
         self.history_valid = True
 
@@ -345,19 +380,24 @@ class VoxelMipPass(Pass):
     history_resets = frozenset()
 
     def execute(self, rc, frame):
-        grid: VoxelGrid = rc.resources[GRID]
-        tex = rc.resources[RADIANCE]
-        n, C = grid.n, grid.cascades
-        mip = rc.programs.compute("vxgi/mip.comp")
-        set_uniform(mip, "u_cascades", C)
-        for k in range(grid.levels - 1):
-            if k > 0:
-                rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT | TEXTURE_FETCH_BARRIER_BIT)
-            nd = n >> (k + 1)
-            tex.bind_to_image(0, read=False, write=True, level=k + 1)
-            tex.bind_to_image(1, read=True, write=False, level=k)
-            set_uniform(mip, "u_n_dst", nd)
-            rc.dispatch(mip, (nd + 3) // 4, (nd + 3) // 4, (nd * 6 * C + 3) // 4)
+        build_mips(rc, rc.resources[RADIANCE], rc.resources[GRID])
+
+
+def build_mips(rc, tex, grid: VoxelGrid):
+    """Levels 1.. of ``tex`` from its level 0 (shaders/vxgi/mip.comp), level by level; each
+    level reads the one below, which the previous dispatch stored (own barriers). The caller
+    orders level 0's writes before this (the graph's barrier, or the injection's own)."""
+    n, C = grid.n, grid.cascades
+    mip = rc.programs.compute("vxgi/mip.comp")
+    set_uniform(mip, "u_cascades", C)
+    for k in range(grid.levels - 1):
+        if k > 0:
+            rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT | TEXTURE_FETCH_BARRIER_BIT)
+        nd = n >> (k + 1)
+        tex.bind_to_image(0, read=False, write=True, level=k + 1)
+        tex.bind_to_image(1, read=True, write=False, level=k)
+        set_uniform(mip, "u_n_dst", nd)
+        rc.dispatch(mip, (nd + 3) // 4, (nd + 3) // 4, (nd * 6 * C + 3) // 4)
 
 
 class VoxelTracePass(Pass):
