@@ -62,9 +62,9 @@ def _props(sess, props):
 def render_vxgi(sd, quality, samples, props=None, sess="bench_vxgi"):
     from gi_preview.render import session
 
-    if props:
-        session.render(sd, "VXGI", quality, 1, session=sess, warmup=False)
-        _props(sess, props)
+    if props:  # set on the session's graph before its first frame
+        from gi_preview.render.gl import get_gl
+        get_gl().call(lambda: session._get_session(sess)._graph("VXGI", quality)[1].set_properties(props))
     r = session.render(sd, "VXGI", quality, samples, session=sess)
     session.release_session(sess)
     return r
