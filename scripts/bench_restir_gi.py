@@ -176,7 +176,7 @@ def motion(a, results):
     for scene in a.scenes:
         for mo in a.motions.split(","):
             sc = D.build_demo(scene, resolution=a.res)
-            spec = A.AnimationSpec(motion=mo, move=a.motion_frames, hold=a.motion_hold)
+            spec = A.AnimationSpec(motion=mo, move=a.motion_frames, hold=a.motion_hold, draws=a.motion_draws)
             t0 = time.perf_counter()
             res = A.run(sc, spec, techs, reference=reference, export=export, session=Shim, width=a.res,
                         height=a.res, log=lambda m: print(m, flush=True))
@@ -234,6 +234,8 @@ def main():
     ap.add_argument("--motion-hold", type=int, default=10)
     ap.add_argument("--motions", default="orbit,pan")
     ap.add_argument("--motion-techniques", default="RESTIR_GI,RESTIR_GI+SVGF,SVGF")
+    ap.add_argument("--motion-draws", type=int, default=1,
+                    help="independent noise draws per motion run (trail and stability: means; see animation.py)")
     ap.add_argument("--out", default=str(OUT / "results.json"))
     a = ap.parse_args()
     a.scenes = a.scenes.split(",")
