@@ -40,7 +40,6 @@ from gi_preview.blender import demo_scenes, reference
 from gi_preview.compare import metrics
 from gi_preview.render import session
 from _helpers import export as _export, dump_exr, mean_ratio as _ratio
-from gi_preview.render.gl import get_gl
 
 import scenes_raster3d
 
@@ -60,7 +59,7 @@ def _render(sd, tech, quality, samples, props=None, sess="raster3d"):
     """Render with pass properties set on the session's graph (FrameGraph.set_properties)."""
     if props:
         session.render(sd, tech, quality, 1, session=sess, warmup=False)
-        get_gl().call(lambda: [g.set_properties(props) for _t, g in session._sessions[sess].graphs.values()])
+        session.set_pass_properties(sess, props)
     try:
         return session.render(sd, tech, quality, samples, session=sess)
     finally:
@@ -195,7 +194,7 @@ def test_moving_light_and_camera_no_flicker():
                 sess = f"raster3d_motion_{i}"
                 if k == 0 and props:
                     session.render(sd, tech, 1, 1, keep_history=True, session=sess)
-                    get_gl().call(lambda: [g.set_properties(props) for _t, g in session._sessions[sess].graphs.values()])
+                    session.set_pass_properties(sess, props)
                 img = session.render(sd, tech, 1, 1, keep_history=True, session=sess).image[..., :3]
                 assert np.isfinite(img).all(), f"{label} frame {k}: non-finite"
                 assert img.min() >= 0.0, f"{label} frame {k}: negative {img.min()}"

@@ -42,10 +42,7 @@ class Run:
         session.render(sd, "RESTIR_DI", 1, 1, session=name, warmup=False)  # compile, plan
 
     def props(self, props):
-        def go():
-            for _t, g in session._sessions[self.name].graphs.values():
-                g.set_properties({"restir_di": props})
-        get_gl().call(go)
+        session.set_pass_properties(self.name, {"restir_di": props})
 
     def frames(self, n, *, cold=False):
         """n frames: the first after a history cut, the others with history (cold: cut before

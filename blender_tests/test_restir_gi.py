@@ -63,7 +63,7 @@ def release(sess):
 
 
 def set_props(sess, props):
-    get_gl().call(lambda: [g.set_properties({"restir_gi": props}) for _t, g in session._sessions[sess].graphs.values()])
+    session.set_pass_properties(sess, {"restir_gi": props})
 
 
 @pytest.fixture(scope="module", params=["cornell", "sunlit_room"])

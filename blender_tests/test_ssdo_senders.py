@@ -23,7 +23,6 @@ from numpy.lib.stride_tricks import sliding_window_view
 from gi_preview.blender import demo_scenes, reference
 from gi_preview.compare import metrics
 from gi_preview.render import session
-from gi_preview.render.gl import get_gl
 from _helpers import export as _export
 
 RES, FRAMES = 96, 16
@@ -41,7 +40,7 @@ def speckles(img: np.ndarray, k: float = 3.0, floor: float = 0.01, r: int = 3) -
 def _render(sd, props=None, sess="ssdo_senders"):
     if props:
         session.render(sd, "SSDO", 1, 1, session=sess, warmup=False)
-        get_gl().call(lambda: [g.set_properties(props) for _t, g in session._sessions[sess].graphs.values()])
+        session.set_pass_properties(sess, props)
     try:
         return session.render(sd, "SSDO", 1, FRAMES, session=sess)
     finally:

@@ -36,7 +36,6 @@ from gi_preview.blender import demo_scenes, reference
 from gi_preview.compare import metrics
 from gi_preview.render import session
 from _helpers import export as _export, dump_exr, mean_ratio as _ratio
-from gi_preview.render.gl import get_gl
 
 import scenes_raster3d
 
@@ -53,9 +52,7 @@ def _render(sd, sess, props=None, frames=FRAMES, quality=Q, **kw):
     the session's graph before its first frame (no throw-away frame: a reset frame runs the
     injection reset_bounces times)."""
     if props:
-        def go():
-            session._get_session(sess)._graph("VXGI", quality)[1].set_properties(props)
-        get_gl().call(go)
+        session.set_pass_properties(sess, props, "VXGI", quality)
     return session.render(sd, "VXGI", quality, frames, session=sess, **kw)
 
 

@@ -110,9 +110,8 @@ def _bpy_env():
 
 def _set_props(sess, props):
     from gi_preview.render import session as S
-    from gi_preview.render.gl import get_gl
 
-    get_gl().call(lambda: [g.set_properties(props) for _t, g in S._sessions[sess].graphs.values()])
+    S.set_pass_properties(sess, props)
 
 
 def part_compare(o, rows):

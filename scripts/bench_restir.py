@@ -60,7 +60,6 @@ def main():
     from gi_preview.blender.export import export_scene
     from gi_preview.blender.reference import evaluated_depsgraph, get_reference
     from gi_preview.render import session as S
-    from gi_preview.render.gl import get_gl
 
     def rel(x, ref):
         return float(np.mean((x[..., :3] - ref) ** 2 / (ref ** 2 + 1e-2)))
@@ -81,7 +80,7 @@ def main():
         """n frames in a fresh session: history kept (cut before every frame when cold)."""
         S.render(sd, tech, 1, 1, session=sess, warmup=False)
         if props:
-            get_gl().call(lambda: [g.set_properties(props) for _t, g in S._sessions[sess].graphs.values()])
+            S.set_pass_properties(sess, props)
         imgs, ms, last = [], [], None
         for f in range(n):
             r = S.render(sd, tech, 1, 1, keep_history=True, camera_cut=(f == 0 or cold), warmup=False, session=sess)
@@ -94,7 +93,7 @@ def main():
     def accumulate(sd, props, n, sess):
         """A fresh render of n frames accumulated by the session (F12 without warm-up)."""
         S.render(sd, "RESTIR_DI", 1, 1, session=sess, warmup=False)
-        get_gl().call(lambda: [g.set_properties(props) for _t, g in S._sessions[sess].graphs.values()])
+        S.set_pass_properties(sess, props)
         r = S.render(sd, "RESTIR_DI", 1, n, warmup=False, session=sess)
         S.release_session(sess).result(timeout=60)
         return r.image[..., :3]

@@ -68,10 +68,9 @@ def run(sd, tech, n, sess, props=None, denoiser="NONE", frame_cb=None):
     images, the results and the median frame ms."""
     import numpy as np
     from gi_preview.render import session as S
-    from gi_preview.render.gl import get_gl
     S.render(sd, tech, 1, 1, session=sess, warmup=False, denoiser=denoiser)
     if props:
-        get_gl().call(lambda: [g.set_properties(props) for _t, g in S._sessions[sess].graphs.values()])
+        S.set_pass_properties(sess, props)
     imgs, ms, res = [], [], []
     for f in range(n):
         scene = frame_cb(f) if frame_cb else sd

@@ -51,20 +51,15 @@ def _setup():
 
 def _props(sess, props):
     from gi_preview.render import session
-    from gi_preview.render.gl import get_gl
 
-    def go():
-        for _t, g in session._sessions[sess].graphs.values():
-            g.set_properties(props)
-    get_gl().call(go)
+    session.set_pass_properties(sess, props)
 
 
 def render_vxgi(sd, quality, samples, props=None, sess="bench_vxgi"):
     from gi_preview.render import session
 
     if props:  # set on the session's graph before its first frame
-        from gi_preview.render.gl import get_gl
-        get_gl().call(lambda: session._get_session(sess)._graph("VXGI", quality)[1].set_properties(props))
+        session.set_pass_properties(sess, props, "VXGI", quality)
     r = session.render(sd, "VXGI", quality, samples, session=sess)
     session.release_session(sess)
     return r

@@ -310,6 +310,24 @@ def _get_session(key) -> Session:
     return s
 
 
+def set_pass_properties(key, props: dict, technique: str | None = None, quality: int = 1,
+                        denoiser: str = "NONE", use_taa: bool = False):
+    """Set pass properties (``{pass name: {param: value}}``, FrameGraph.set_properties) on
+    session ``key``'s graphs, for benches and tests that sweep a parameter: with ``technique``
+    on that technique's graph at ``quality`` (built now if the session has none yet, so the
+    values hold from its first frame), otherwise on every graph the session has built.
+    Blocks until done (runs on the GL thread)."""
+    def go():
+        s = _get_session(key)
+        if technique:
+            graphs = [s._graph(technique, quality, denoiser, use_taa)[1]]
+        else:
+            graphs = [g for _t, g in s.graphs.values()]
+        for g in graphs:
+            g.set_properties(props)
+    get_gl().call(go)
+
+
 def release_all():
     """Free every session (runs on the GL thread)."""
     for s in _sessions.values():
