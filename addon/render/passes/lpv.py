@@ -372,8 +372,14 @@ class LPVLookupPass(Pass):
     writes = ("lpv.raw", "lpv.cascade")
     declared = (Res("lpv.raw", check="radiance"), Res("lpv.cascade", dtype="f2", check="radiance"))
     history_resets = frozenset()
-    params = (Param("dampening", 0.0, 0.0, 1.0, "scale of light flowing away along the normal (self-illumination)"),
+    params = (Param("dampening", 0.0, 0.0, 1.0, "scale of light flowing away along the normal (self-illumination; q3: 0.25)"),
               Param("normal_offset", 0.25, 0.0, 2.0, "lookup point offset along the normal, in cells of the cascade read (0.5 before 2026-12-02)"))
+    # q3's grid (40) is the finest: a surface's own injected light sits nearest its lookup and
+    # follows its direct light's change, the per-frame change 60 moving frames showed (1.004x
+    # Cycles' mean step with 0; 0.25 takes 0.052 off the first 20 poses, docs/techniques/LPV.md
+    # fourth session). q0-q2 keep 0 (they meet the stability bar without it; it darkens the
+    # Cornell box's mean).
+    quality_ladder = ({"dampening": 0.0}, {"dampening": 0.0}, {"dampening": 0.0}, {"dampening": 0.25})
 
     def __init__(self, quality=None, *, lpv: LPVPass | None = None, **kw):
         super().__init__(quality, **kw)

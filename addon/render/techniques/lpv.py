@@ -22,12 +22,12 @@ See docs/techniques/LPV.md.
 | geometry_surfels | bool | blockers from the surfels (False with rays: rays only) |
 | iteration_scale | 0.05–4 | propagation steps per cell of the grid side |
 | inject_scale | 0–1 | weight of the unpropagated injected light in the result |
-| dampening | 0–1 | scale of light flowing away along the normal |
+| dampening | 0–1 | scale of light flowing away along the normal (0; q3 0.25) |
 | normal_offset | 0–2 | cells along the surface normal where the lookup reads (default 0.25) |
 | debug_cascade, debug_height | | the slice GI_LPV_Slice shows |
 
 Quality ladder (RSM px, grid, cascades): 0 = 64, 16, 2; 1 = 128, 24, 3; 2 = 256, 32, 3;
-3 = 512, 40, 3.
+3 = 512, 40, 3 with the lookup's dampening 0.25 (its finest grid's self-illumination).
 """
 from __future__ import annotations
 
