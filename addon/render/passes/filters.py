@@ -221,7 +221,10 @@ class TAAPass(_FilterPass):
               "pixel's surface; else bilinear), 0 bilinear"),
         Param("history_normal", 0.9, -1.0, 1.0, "a history texel is kept only if its normal . the pixel's normal "
               "exceeds this (-1: off)"),
-        Param("normal_motion", 0.0, 0.0, 100.0, "history_normal applies where the reprojection moves by more "
+        # 0.5: a sub-pixel move keeps the plane test only (the still pixel's rule), so a slow pan does not
+        # drop the edge pixels' anti-aliased history (sun-lit pan at 0.08 px/frame: held relMSE 0.0253 ->
+        # 0.0239); the Cornell pan's grazing face (0.67 px/frame) keeps the normal test. docs/techniques/TAA.md
+        Param("normal_motion", 0.5, 0.0, 100.0, "history_normal applies where the reprojection moves by more "
               "than this (pixels)"),
         Param("history_fallback", 1, 0, 1, "1: where no bilinear history tap is on the pixel's surface, the "
               "same-surface texels of the 3x3 around the reprojected point"),
