@@ -61,7 +61,9 @@ def render_vxgi(sd, quality, samples, props=None, sess="bench_vxgi"):
     if props:  # set on the session's graph before its first frame
         session.set_pass_properties(sess, props, "VXGI", quality)
     r = session.render(sd, "VXGI", quality, samples, session=sess)
-    session.release_session(sess)
+    fut = session.release_session(sess)  # asynchronous: wait, or the next set_pass_properties
+    if fut is not None:                  # lands on this session and the next render gets defaults
+        fut.result()
     return r
 
 

@@ -227,6 +227,12 @@ CONE_PARAMS = (
           "over the receiver's plane (0 = off): coarse mips never reach back over the receiver's own surface"),
     Param("cone_rotation", False, doc="turn the five side cones around the normal every frame (converges a "
           "still image over frames, but flickers under motion: 60-frame Cornell 1.4x Cycles' mean step)"),
+    Param("axis_box", True, doc="read each directional face at its mip's texel centre along the face's own axis "
+          "(a box, not a trilinear tent, along the direction a cone crosses it: a one-voxel wall stops a cone "
+          "wherever it lies in a texel; off = trilinear, as before the sixth session)"),
+    Param("opaque_radiance", True, doc="a sample's radiance weights its three faces by d^2 x opacity (the faces "
+          "that occlude it show it), not by d^2 alone: the black edge-on faces of a wall crossed obliquely "
+          "(edge_opacity) no longer dim its radiance (off = as before the sixth session)"),
     Param("audit_radiance", 0.0, 0.0, 1e3, "energy audit (tests): > 0 = both sides of every voxelised surface "
           "show this radiance (no lights, no bounce) and GI_IndirectDiffuse holds E/pi (albedo 1); 0 = off"),
 )
@@ -313,6 +319,8 @@ class VoxelInjectPass(Pass):
         set_uniform(prog, "u_vx_side_angle", float(np.radians(self["side_angle"])))
         set_uniform(prog, "u_audit", float(self["audit_radiance"]))
         set_uniform(prog, "u_rotate", 1 if self["cone_rotation"] else 0)
+        set_uniform(prog, "u_vx_box", 1 if self["axis_box"] else 0)
+        set_uniform(prog, "u_vx_opaque_radiance", 1 if self["opaque_radiance"] else 0)
         set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
         res[VOXELS].bind_to_storage_buffer(BINDING_RECORDS)
         self.voxelize.list.bind_to_storage_buffer(BINDING_LIST)
@@ -437,6 +445,8 @@ class VoxelTracePass(Pass):
         set_uniform(prog, "u_vx_cap", float(self["footprint_cap"]))
         set_uniform(prog, "u_audit", float(self["audit_radiance"]))
         set_uniform(prog, "u_rotate", 1 if self["cone_rotation"] else 0)
+        set_uniform(prog, "u_vx_box", 1 if self["axis_box"] else 0)
+        set_uniform(prog, "u_vx_opaque_radiance", 1 if self["opaque_radiance"] else 0)
         res[COLOR].bind_to_image(0, read=True, write=True)
         res[DIFFUSE].bind_to_image(1, read=False, write=True)
         res[GLOSSY].bind_to_image(2, read=False, write=True)
