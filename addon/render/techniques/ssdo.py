@@ -34,9 +34,10 @@ Compared with Cycles "one_bounce" (and "full"). See docs/techniques/SSDO.md.
 
 Quality ladder (samples, radius, scale, world_rays, world_tile, blur): 0 = 4, 1.0, 0.5, 0, -, 3;
 1 = 8, 1.5, 1, 1, 8, 2; 2 = 16, 2.0, 1, 1, 4, 2; 3 = 32, 2.5, 1, 1, 2, 1; sender_samples 2 at
-q1-q3 and 0 at q0 (q0's pass runs at half resolution, where the full-resolution flux pyramid is
-~15 % of the frame: sun-lit room q0 equal-error speed-up 0.91x of before issue 9 with 1 sender,
-0.97x without; docs/techniques/SSDO.md).
+q1-q3 and 0 at q0. The flux pyramid is built at the pass's own resolution (q0: blocks of 2x2
+G-buffer pixels), but at q0 one sender still costs more than its lower error buys: sun-lit room
+q0 equal-error speed-up 0.55/0.49/0.56x -> 0.53/0.47/0.36x in a same run against HEAD (cornell
+0.21/0.22/0.22x -> 0.28/0.25/0.23x, relMSE 0.042 -> 0.030); docs/techniques/SSDO.md.
 """
 from __future__ import annotations
 
@@ -181,12 +182,13 @@ class SSDOPass(AOPass):
         self.run(rc, resolve, size)
 
     def _flux(self, rc, frame):
-        """The senders' flux pyramid: level 0 per G-buffer pixel (ssdo_flux.comp) in a
-        power-of-two image, then each level the sum of its children (ssdo_flux_reduce.comp).
-        Returns (texture, coarsest level)."""
+        """The senders' flux pyramid: level 0 at the pass's own resolution (ssdo_flux.comp:
+        per texel the flux of its block of G-buffer pixels, 1 at full resolution, 2x2 at q0's
+        half) in a power-of-two image, then each level the sum of its children
+        (ssdo_flux_reduce.comp). Returns (texture, coarsest level)."""
         import moderngl
 
-        w, h = rc.size
+        w, h = self.out_size(rc)  # level 0 at the pass's resolution (q0: half), blocks of pixels
         pw, ph = 1 << max(0, (w - 1).bit_length()), 1 << max(0, (h - 1).bit_length())
         levels = max(pw, ph).bit_length()
         tex = self._flux_tex
@@ -205,6 +207,7 @@ class SSDOPass(AOPass):
         bind_gbuffer(rc, fprog, units)
         units.tex(fprog, "u_radiance", rc.resources[DIRECT_RADIANCE])
         units.tex(fprog, "u_trust", rc.resources[self.trust])
+        set_uniform(fprog, "u_out_size", (w, h))
         tex.bind_to_image(0, read=False, write=True, level=0)
         self.run(rc, fprog, (pw, ph))
         red = rc.programs.compute("screen_space/ssdo_flux_reduce.comp")
