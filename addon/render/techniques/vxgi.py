@@ -28,8 +28,10 @@ docs/techniques/VXGI.md.
 Registered like every technique since its lighting accuracy met the issue at q0/q1 (40 px, a
 sample's opacity the largest of its three directional faces', edge opacity 0.1, footprint cap
 0.35): Cornell mean 0.893/0.892 of Cycles' full (+-15 %), sun-lit room relMSE 0.067/0.032
-against DIRECT's 0.108/0.080. Not met: the Cornell mean at q2/q3 (0.816/0.813; q0/q1 pass partly
-because the coarse grid happens to end at three of the box's walls, see the page). Energy audit
+against DIRECT's 0.108/0.080. Sixth session (axis_box, opaque_radiance): Cornell mean
+q0-q3 within +-15 % at three grid placements (q2 0.904, q3 0.907 at the default grid; before
+0.816/0.813), at the cost of a larger thin-wall leak (q0 0.016 -> 0.023) and q1 flicker
+(largest step 1.21x -> 1.37x Cycles'), see the page. Energy audit
 (closed-box furnace, ideal 1): 0.69 at the defaults, 0.87 with edge opacity 0
 (docs/techniques/VXGI.md).
 
