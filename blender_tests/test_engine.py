@@ -555,3 +555,33 @@ def test_switching_techniques_and_sizes_in_one_session():
             assert np.isfinite(res.image).all() and res.image[..., :3].mean() > 1e-3
     finally:
         bpy.data.scenes.remove(sc)
+
+
+def test_pass_properties_after_release_reach_the_fresh_session():
+    """``release_session`` is queued at background priority; a ``set_pass_properties`` on the
+    same key called after it must run after it (the session's own job order), so the values
+    land on the fresh session and not on the one being freed (a bench once lost its settings
+    this way: its next row rendered with the defaults)."""
+    from gi_preview.render.gl import get_gl
+
+    gl = get_gl()
+    key = "props_after_release"
+    session.set_pass_properties(key, {"direct_light": {"glossy_samples": 3}}, technique="DIRECT", quality=0)
+    gate = threading.Event()
+    blocker = gl.submit_job(lambda: gate.wait(30))  # holds the GL thread so both calls queue up
+    try:
+        released = session.release_session(key)
+        setter = threading.Thread(target=session.set_pass_properties,
+                                  args=(key, {"direct_light": {"glossy_samples": 5}}),
+                                  kwargs={"technique": "DIRECT", "quality": 0})
+        setter.start()
+        time.sleep(0.3)  # the setter's job is queued behind the release
+    finally:
+        gate.set()
+    setter.join(30)
+    blocker.result(timeout=30)
+    assert released.result(timeout=30) is True
+    props = gl.call(lambda: [g.get_properties()["direct_light"]["glossy_samples"]
+                             for _t, g in session._sessions[key].graphs.values()])
+    assert props == [5], props
+    session.release_session(key).result(timeout=30)

@@ -316,7 +316,10 @@ def set_pass_properties(key, props: dict, technique: str | None = None, quality:
     session ``key``'s graphs, for benches and tests that sweep a parameter: with ``technique``
     on that technique's graph at ``quality`` (built now if the session has none yet, so the
     values hold from its first frame), otherwise on every graph the session has built.
-    Blocks until done (runs on the GL thread)."""
+    Blocks until done. Runs on the GL thread as a job of the session's own queue, so it
+    keeps submission order with that session's renders and with :func:`release_session`:
+    after ``release_session(key)`` it applies to the fresh session, not to the one being
+    released."""
     def go():
         s = _get_session(key)
         if technique:
@@ -325,7 +328,7 @@ def set_pass_properties(key, props: dict, technique: str | None = None, quality:
             graphs = [g for _t, g in s.graphs.values()]
         for g in graphs:
             g.set_properties(props)
-    get_gl().call(go)
+    get_gl().submit_job(go, key=("session", key)).result()
 
 
 def release_all():
