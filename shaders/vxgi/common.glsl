@@ -64,8 +64,19 @@ float vx_voxel_size_at(vec3 p) {
 #ifdef VX_SAMPLING
 uniform sampler3D u_vx_radiance;
 uniform float u_vx_opacity_scale;  // opacity bias (>= 1 thickens occluders, against leaks)
-uniform int u_vx_box;              // 1: box reconstruction along each face's own axis (see vx_sample)
-uniform int u_vx_opaque_radiance;  // 1: faces weighted by d^2 x opacity for the radiance (see vx_sample)
+// compile-time switches (defines from passes/vxgi.vx_defines; llvmpipe pays for both sides of
+// a branch on a uniform, so the unused reconstruction is not compiled in):
+// VX_BOX 0: trilinear; 1: box along each face's own axis; 2: box with ramped edges (see vx_sample)
+// VX_OPAQUE_RADIANCE 1: faces weighted by d^2 x opacity for the radiance (see vx_sample)
+#ifndef VX_BOX
+#define VX_BOX 1
+#endif
+#ifndef VX_OPAQUE_RADIANCE
+#define VX_OPAQUE_RADIANCE 1
+#endif
+#if VX_BOX == 2
+uniform float u_vx_box_ramp;       // width in texels of the ramp across a texel boundary (1 = the tent)
+#endif
 // a face whose weight d_k^2 is below this counts less than fully in the sample's opacity
 // (a cone running within ~18 degrees of a surface's plane is not stopped by it outright)
 #define VX_FACE_W_FULL 0.1
@@ -117,23 +128,35 @@ vec4 vx_sample(vec3 p, float diam, vec3 d, out float width) {
             if (w[k] < 1e-4) continue;
             float slab = float(f[k] * u_vx_cascades + c);
             vec4 t;
-            if (u_vx_box == 1) {
-                // box along the face's own axis: each of the two mips is read at its own texel
-                // centre along axis k (linear across it), blended by the lod's fraction
-                t = vec4(0.0);
-                for (int j = 0; j < 2; ++j) {
-                    float lj = lo + float(j);
-                    float wj = j == 0 ? 1.0 - fr : fr;
-                    if (wj <= 0.0) continue;
-                    float m = n / exp2(lj);  // texels per side at this mip
-                    vec3 lk = l;
-                    lk[k] = (clamp(floor(l[k] * m), 0.0, m - 1.0) + 0.5) / m;
-                    t += wj * textureLod(u_vx_radiance, vec3(lk.xy, (slab + lk.z) / slabs), lj);
-                }
-            } else {
-                t = textureLod(u_vx_radiance, vec3(l.xy, (slab + l.z) / slabs), lod);
+#if VX_BOX >= 1
+            // box along the face's own axis: each of the two mips is read at its own texel
+            // centre along axis k (linear across it), blended by the lod's fraction
+            t = vec4(0.0);
+            for (int j = 0; j < 2; ++j) {
+                float lj = lo + float(j);
+                float wj = j == 0 ? 1.0 - fr : fr;
+                if (wj <= 0.0) continue;
+                float m = n / exp2(lj);  // texels per side at this mip
+                vec3 lk = l;
+#if VX_BOX == 1
+                lk[k] = (clamp(floor(l[k] * m), 0.0, m - 1.0) + 0.5) / m;
+#else
+                // box with linear edges: flat over the texel's middle, a ramp u_vx_box_ramp
+                // texels wide across each texel boundary (continuous in the sample's position)
+                float x = l[k] * m - 0.5, i = floor(x);
+                float e = clamp((x - i - 0.5) / u_vx_box_ramp + 0.5, 0.0, 1.0);
+                lk[k] = clamp((i + e + 0.5) / m, 0.5 / m, 1.0 - 0.5 / m);
+#endif
+                t += wj * textureLod(u_vx_radiance, vec3(lk.xy, (slab + lk.z) / slabs), lj);
             }
-            r += (u_vx_opaque_radiance == 1 ? w[k] * t.a : w[k]) * t;
+#else
+            t = textureLod(u_vx_radiance, vec3(l.xy, (slab + l.z) / slabs), lod);
+#endif
+#if VX_OPAQUE_RADIANCE
+            r += w[k] * t.a * t;
+#else
+            r += w[k] * t;
+#endif
             amax = max(amax, t.a * min(1.0, w[k] / VX_FACE_W_FULL));
         }
         if (r.a > 1e-6) r = vec4(r.rgb / r.a, 1.0) * amax;
