@@ -30,8 +30,8 @@ new q2 one-bounce test at two grid placements 0.924 / 1.008 (6.2 s). File 62.6 s
 Seventh session (box_ramp 0.5; axis_box / opaque_radiance compiled as defines, since llvmpipe ran
 both sides of the uniform branch: q0 frame 1074 -> ~650 ms, b9467cf 700 ms): cornell relMSE 0.065,
 mean 0.972, first frame 1.003; q2 one-bounce 0.926 / 1.008; sunlit 0.078 (DIRECT 0.108), mean 1.146;
-leak 0.0205, undilated 0.0395; audit 0.893 / 0.790. File 42.8 s alone (11:10 UTC, first compile of
-the new variants included; b9467cf's file 31.5 s, HEAD f102339 54.5 s in the same half hour).
+leak 0.0205, undilated 0.0395; audit 0.893 / 0.790. File 38.8 s alone (11:14 UTC; 42.8 s at 11:10 with the first
+compile of the new variants; b9467cf's file 31.5 s, f102339's 54.5 s at 10:48).
 Fifth session: 31.6 s for the file alone (fifth session: 49.7 s with the throw-away pre-render per property set, now set on the graph before the first frame; 29.9 s before the first-frame check).
 """
 from __future__ import annotations
