@@ -233,7 +233,8 @@ CONE_PARAMS = (
     Param("box_ramp", 0.5, 0.0, 1.0, "axis_box only: width (in texels) of a linear ramp across each texel "
           "boundary along the face's axis (0 = a hard box, whose value jumps when a cone sample crosses a "
           "boundary as the camera or receiver moves; 1 = the trilinear tent). 0.5 (seventh session): q1 60-frame "
-          "largest step 1.37x -> 1.30x Cycles', mean 0.95x -> 0.88x; Cornell q2 one-bounce 0.925 -> 0.928"),
+          "largest step 1.37x -> 1.30x Cycles', mean 0.95x -> 0.88x (q0: largest 1.23x -> 1.46x, mean 0.93x -> "
+          "0.87x); Cornell q2 one-bounce 0.925 -> 0.928"),
     Param("opaque_radiance", True, doc="a sample's radiance weights its three faces by d^2 x opacity (the faces "
           "that occlude it show it), not by d^2 alone: the black edge-on faces of a wall crossed obliquely "
           "(edge_opacity) no longer dim its radiance (off = as before the sixth session)"),
