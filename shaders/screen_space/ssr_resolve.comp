@@ -15,15 +15,22 @@
 // Hits carry the hit pixel's reflected direct light aov.direct (one bounce; the emission
 // of hit emitters is already in DIRECT's glossy term) times their confidence (edge and
 // distance fades). Misses (the ray left the screen, went behind everything or too far)
-// carry nothing here: the fallback for the missing share is DIRECT's own world reflection,
-// shadowed by its world-light maps (aov.world_spec), which the composite keeps in
-// proportion 1 - a. So a ray fading out at the screen edge blends into the world
+// carry nothing here: the fallback for the missing share (the composite's, in proportion
+// 1 - a) is SSR_MISS's o_fallback below, or without it DIRECT's own world reflection,
+// shadowed by its world-light maps (aov.world_spec). So a ray fading out at the screen edge blends into the world
 // reflection without a seam, and a miss indoors is not lit by the unshadowed sky.
 // Output: rgb = sum(w conf L_hit) / sum(w) (demodulated incident radiance of the hits),
 // a = sum(w conf) / sum(w) (the share of the lobe found on screen); both 0 where there is
 // no glossy lobe or the surface is rougher than u_max_roughness (DIRECT's term stays).
 // o_hit_dist: the found hits' mean distance (same weights; 0 = none), with which the
 // temporal pass reprojects the reflection by the reflected point.
+// SSR_MISS (SSR's own chain, issue 9 point 3): o_fallback, the glossy light (times the
+// specular albedo, the composite's units) for the share 1 - a of the lobe not found: the
+// same neighbours' rays traced through the scene (ssr_miss.comp, u_miss), each weighted by
+// w (1 - conf), i.e. the ratio estimator restricted to the missed share; where no ray of
+// this frame missed (all found, a < 1 only through the temporal mean), the mean over every
+// traced ray (w); where no ray was traced (too rough, no glossy lobe, miss_trace off) DIRECT's
+// aov.world_spec, so that the composite's result is then exactly the one without the trace.
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/rng.glsl"
@@ -39,6 +46,14 @@ layout(binding = 1, r32f) uniform writeonly image2D o_hit_dist;  // weighted mea
 uniform sampler2D u_ray0;
 uniform sampler2D u_ray1;
 uniform sampler2D u_radiance;
+#ifdef SSR_MISS
+layout(binding = 2, rgba32f) uniform writeonly image2D o_fallback;
+uniform sampler2D u_miss;        // ssr_miss.comp: radiance along each traced ray, a = 1 traced
+uniform sampler2D u_world_spec;  // DIRECT's shadowed world reflection
+#define STORE_FALLBACK(v) imageStore(o_fallback, px, vec4(v, 1.0))
+#else
+#define STORE_FALLBACK(v)
+#endif
 uniform int u_resolve_samples;
 uniform float u_max_roughness;
 
@@ -48,6 +63,10 @@ void main() {
     if (any(greaterThanEqual(px, osize))) return;
     GPixel g = fetch_g(px);
     imageStore(o_hit_dist, px, vec4(0.0));
+#ifdef SSR_MISS
+    vec3 world_spec = texelFetch(u_world_spec, px, 0).rgb;
+#endif
+    STORE_FALLBACK(world_spec);
     if (!g.valid) { imageStore(o_spec, px, vec4(0.0)); return; }
     Surface s = fetch_surface(px, g.mid);
     vec3 V = view_dir(g.P);
@@ -63,6 +82,10 @@ void main() {
     float a2 = s.alpha * s.alpha;
     vec3 sum = vec3(0.0);
     float cover = 0.0, wsum = 0.0, dsum = 0.0;
+#ifdef SSR_MISS
+    vec3 msum = vec3(0.0), tsum = vec3(0.0);
+    float mw = 0.0, tw = 0.0;
+#endif
     int n = max(u_resolve_samples, 1);
     for (int k = 0; k < n; ++k) {
         ivec2 qq = qc;
@@ -106,7 +129,21 @@ void main() {
         cover += w * conf;
         dsum += w * conf * hdist;
         wsum += w;
+#ifdef SSR_MISS
+        vec4 lm = texelFetch(u_miss, qq, 0);
+        if (lm.a > 0.5) {
+            msum += w * (1.0 - conf) * lm.rgb;
+            mw += w * (1.0 - conf);
+            tsum += w * lm.rgb;
+            tw += w;
+        }
+#endif
     }
+#ifdef SSR_MISS
+    vec3 ks = specular_albedo(s, NoV);
+    if (mw > 1e-6 * tw && mw > 0.0) STORE_FALLBACK(sanitize(ks * msum / mw));
+    else if (tw > 0.0) STORE_FALLBACK(sanitize(ks * tsum / tw));
+#endif
     imageStore(o_hit_dist, px, vec4(cover > 1e-6 ? dsum / cover : 0.0));
     vec3 res = wsum > 0.0 ? sum / wsum : vec3(0.0);
     float a = wsum > 0.0 ? clamp(cover / wsum, 0.0, 1.0) : 0.0;

@@ -16,8 +16,10 @@
 // (Before: one depth per pixel compared with the ray's depth within u_thickness in view
 // depth, so grazing walls and floors were crossed between two samples and their
 // reflections broke into speckles; and a back-face hit ended the ray as a miss.)
-// Rays that leave the screen or reach u_max_distance miss; the resolve falls back to
-// DIRECT's shadowed world reflection for them, and hits fade out near the screen edges.
+// Rays that leave the screen or reach u_max_distance miss; their share falls back to SSR's
+// miss trace (ssr_miss.comp, the same rays through the scene's BVH; with miss_trace 0 or a
+// caller's own fallback: DIRECT's shadowed world reflection or that fallback), and hits fade
+// out near the screen edges.
 // Outputs: ray0 = (direction xyz, pdf; pdf 0 = no ray; the pdf is computed in a form that
 // stays finite for mirrors, common.glsl), ray1 = (hit pixel xy, confidence, hit distance).
 // The resolve pass (ssr_resolve.comp) turns them into reflected radiance.

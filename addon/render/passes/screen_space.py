@@ -289,7 +289,8 @@ class CompositePass(ScreenPass):
     ``replaces`` names the glossy terms ``color`` already contains which SSR's result
     (found share + fallback share) replaces in full (at most ``MAX_REPLACED``). The pass
     adds ``ks * found + (1 - a) * fallback - sum(replaces)``. Default: DIRECT's shadowed
-    world reflection for both, i.e. ``ks * found - a * aov.world_spec``. Another technique
+    world reflection for both, i.e. ``ks * found - a * aov.world_spec`` (SSR's own chain passes
+    its miss trace ``ssr.fallback`` instead, see techniques/ssr.py). Another technique
     (probes) passes its own glossy resource as ``fallback`` and lists what of its own it
     already added to ``color`` in ``replaces``."""
 

@@ -10,10 +10,15 @@ ray weighted in closed form so mirrors stay exact; a hit's radiance trusted for 
 share and its glossy share near the camera direction; also the found hits' mean distance
 ``ssr.hit_dist``) → ``ssr_temporal`` (history reprojected by the reflected point, the virtual
 image behind the mirror, where a hit was found) → ``ssr_composite``
-(``color += spec_albedo * found + (1 - a) * fallback - replaced``; by default fallback and
-replaced are DIRECT's shadowed world reflection ``aov.world_spec``, i.e. what was found on
-screen replaces its share ``a`` of it and the rest — misses, untrusted hits, surfaces rougher
-than ``max_roughness`` — keeps it; ``ssr_passes`` lets another technique pass its own fallback). Radiance at a hit is the
+(``color += spec_albedo * found + (1 - a) * fallback - replaced``; replaced is DIRECT's
+shadowed world reflection ``aov.world_spec``; the fallback for the share ``1 - a`` not found on
+screen — misses, untrusted hits — is ``ssr.fallback``: with ``miss_trace`` (off by default)
+``ssr_trace`` traces the same rays again through the scene's BVH (second dispatch,
+``ssr_miss.comp``: direct light at the hit with one shadow ray, the world's light on it with one
+visibility ray, the world where the ray escapes) and ``ssr_resolve`` averages them over the
+same neighbours, weighted by the share each left unfound. Surfaces rougher than
+``max_roughness`` (no rays) and ``miss_trace`` 0 keep ``aov.world_spec``. ``ssr_passes`` lets
+another technique pass its own fallback, which turns the miss trace off). Radiance at a hit is the
 direct-lit colour without emission (one bounce; emitters' glossy reflection is DIRECT's).
 All SSR passes provide INDIRECT_SPECULAR: the planner skips them, saying "no glossy
 surface in view", on a scene without one. Compared with Cycles "one_bounce".
@@ -29,12 +34,14 @@ See docs/techniques/SSR.md.
 | bias | 0–1 | ray origin offset along the geometric normal (scene units) |
 | resolve_samples | 1–16 | neighbour rays reused per pixel |
 | scale | 0.25–1 | resolution scale of the trace |
+| miss_trace | 0/1 | trace the rays through the scene for the share not found on screen |
 
-Quality ladder (steps, resolve, scale): 0 = 32, 4, 1; 1 = 64, 6, 1; 2 = 128, 8, 1; 3 = 256, 12, 1.
+Quality ladder (steps, resolve, scale, miss_trace): 0 = 32, 4, 1, 0; 1 = 64, 6, 1, 0; 2 = 128, 8, 1, 0;
+3 = 256, 12, 1, 0 (miss_trace off by default: see docs/techniques/SSR.md, fifth session).
 """
 from __future__ import annotations
 
-from ..framegraph import Effect, Param, Res
+from ..framegraph import SHADER_IMAGE_ACCESS_BARRIER_BIT, Effect, Param, Res
 from ..gpu_scene import set_uniform
 from ..passes.gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION, GBufferPass
 from ..passes.screen_space import (DIRECT_RADIANCE, HIZ, WORLD_SPEC, CompositePass, HiZPass, ScreenPass, TemporalPass,
@@ -45,6 +52,7 @@ from .direct import DIRECT_OUTPUTS, DirectLightPass
 
 SSR_PROVIDES = frozenset({Effect.INDIRECT_SPECULAR})
 RAY0, RAY1, RESOLVED, HIT_DIST = "ssr.ray0", "ssr.ray1", "ssr.raw", "ssr.hit_dist"
+MISS, FALLBACK = "ssr.miss", "ssr.fallback"
 
 
 class SSRTracePass(ScreenPass):
@@ -57,15 +65,30 @@ class SSRTracePass(ScreenPass):
         Param("edge_fade", 0.08, 0.0, 0.5, "screen fraction over which hits fade at the border"),
         Param("bias", 0.005, 0.0, 1.0, "ray origin offset along the geometric normal"),
         Param("scale", 1.0, 0.25, 1.0, "resolution scale of the trace"),
+        Param("miss_trace", 0, 0, 1, "trace every ray through the scene too, for the share not found on screen "
+              "(SSR's own fallback; 0 = DIRECT's shadowed world reflection)"),
     )
     # q0 traces at full resolution: at half resolution (measured, glossy_spheres 96 px) the
     # reflections of the curved spheres lost detail (relMSE 0.0274 vs 0.0229), for ~1 ms
-    quality_ladder = ({"steps": 32, "scale": 1.0}, {"steps": 64, "scale": 1.0},
-                      {"steps": 128, "scale": 1.0}, {"steps": 256, "scale": 1.0})
+    # miss_trace off at every level: on, F12 renders improve everywhere measured (SSR.md, fifth
+    # session) but its one ray per pixel per frame is not accumulated over time, so a moving
+    # viewport's frames are noisy (corridor dolly, one frame per call: 0.41 vs 0.07 masked relMSE)
+    quality_ladder = ({"steps": 32, "scale": 1.0, "miss_trace": 0}, {"steps": 64, "scale": 1.0, "miss_trace": 0},
+                      {"steps": 128, "scale": 1.0, "miss_trace": 0}, {"steps": 256, "scale": 1.0, "miss_trace": 0})
     reads = (ALBEDO, NORMAL, POSITION, GEONORMAL, HIZ)
     writes = (RAY0, RAY1)
     declared = (Res(RAY0, scale="scale"), Res(RAY1, scale="scale"))
     history_resets = frozenset()
+
+    def __init__(self, quality=None, *, miss: bool = False, **kw):
+        """miss: also write ``ssr.miss`` (ssr_miss.comp: the rays traced through the scene
+        when ``miss_trace`` is on, zeros when off) for the resolve's fallback. Without it
+        (a technique passing its own fallback, RTXGI) the pass is the screen trace only."""
+        super().__init__(quality, **kw)
+        self.miss = miss
+        if miss:
+            self.writes = self.writes + (MISS,)
+            self.declared = self.declared + (Res(MISS, dtype="f2", scale="scale", check="radiance"),)
 
     def size(self, rc):
         return scaled(rc.size, float(self["scale"]))
@@ -86,6 +109,26 @@ class SSRTracePass(ScreenPass):
         size = self.size(rc)
         rc.resources[RAY0].bind_to_image(0, read=False, write=True)
         rc.resources[RAY1].bind_to_image(1, read=False, write=True)
+        self.run(rc, prog, size)
+        if self.miss:
+            self._miss(rc, frame, size)
+
+    def _miss(self, rc, frame, size):
+        """Second dispatch: the rays just stored, traced through the scene's BVH."""
+        on = int(self["miss_trace"]) > 0
+        if on:
+            rt = rc.scene.rt()
+            prog = rc.programs.compute("screen_space/ssr_miss.comp", rt.defines)
+            rt.bind(prog)
+        else:
+            prog = self.program(rc, "screen_space/ssr_miss.comp", {"SSR_MISS_OFF": 1})
+        bind_frame(rc, prog, frame)
+        bind_gbuffer(rc, prog, Units(1))
+        # the rays were stored by the dispatch above: visible to this one's image loads
+        rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT)
+        rc.resources[RAY0].bind_to_image(0, read=True, write=False)
+        rc.resources[RAY1].bind_to_image(1, read=True, write=False)
+        rc.resources[MISS].bind_to_image(2, read=False, write=True)
         self.run(rc, prog, size)
 
 
@@ -108,12 +151,25 @@ class SSRResolvePass(ScreenPass):
     declared = (Res(RESOLVED, dtype="f2", check="radiance"), Res(HIT_DIST, components=1, check="radiance"))
     history_resets = frozenset()
 
+    def __init__(self, quality=None, *, miss: bool = False, **kw):
+        """miss: also write ``ssr.fallback`` from ``ssr.miss`` (see ssr_resolve.comp, SSR_MISS)."""
+        super().__init__(quality, **kw)
+        self.miss = miss
+        if miss:
+            self.reads = self.reads + (MISS, WORLD_SPEC)
+            self.writes = self.writes + (FALLBACK,)
+            self.declared = self.declared + (Res(FALLBACK, check="radiance"),)
+
     def execute(self, rc, frame):
-        prog = self.program(rc, "screen_space/ssr_resolve.comp")
+        prog = self.program(rc, "screen_space/ssr_resolve.comp", {"SSR_MISS": 1} if self.miss else None)
         bind_frame(rc, prog, frame)
         units = Units(1)
         bind_gbuffer(rc, prog, units)
         res = rc.resources
+        if self.miss:
+            units.tex(prog, "u_miss", res[MISS])
+            units.tex(prog, "u_world_spec", res[WORLD_SPEC])
+            res[FALLBACK].bind_to_image(2, read=False, write=True)
         units.tex(prog, "u_ray0", res[RAY0])
         units.tex(prog, "u_ray1", res[RAY1])
         units.tex(prog, "u_radiance", res[DIRECT_RADIANCE])
@@ -143,15 +199,21 @@ def ssr_passes(quality, *, provides=SSR_PROVIDES, fallback: str = WORLD_SPEC,
     """SSR's own passes (Hi-Z, trace, resolve, temporal, composite), to follow DIRECT's.
 
     ``fallback``/``replaces`` go to the composite (see ``CompositePass``): the glossy light
-    used for the share of the lobe not found on screen (default DIRECT's shadowed world
-    reflection ``aov.world_spec``) and the glossy terms already in ``color`` that SSR's
-    result replaces (default ``(aov.world_spec,)``). A probe technique passes its probe
-    glossy resource as ``fallback`` (written before ``ssr_composite`` runs).
+    used for the share of the lobe not found on screen and the glossy terms already in
+    ``color`` that SSR's result replaces (default ``(aov.world_spec,)``). Left at their
+    defaults, the fallback is SSR's own miss trace ``ssr.fallback`` (``miss_trace``; off:
+    DIRECT's shadowed world reflection ``aov.world_spec``). A probe technique passes its probe
+    glossy resource as ``fallback`` (written before ``ssr_composite`` runs); then no miss
+    trace runs.
     ``reproject_by_hit``: the temporal pass follows the reflected point (default) instead of
     the reflecting surface (kept for measuring the difference)."""
     p = provides
-    trace = SSRTracePass(quality, provides=p)
-    resolve = SSRResolvePass(quality, provides=p, max_roughness=trace["max_roughness"])
+    # SSR's own fallback (the miss trace) only where the caller keeps the default one
+    own = fallback == WORLD_SPEC and replaces is None
+    trace = SSRTracePass(quality, provides=p, miss=own)
+    resolve = SSRResolvePass(quality, provides=p, max_roughness=trace["max_roughness"], miss=own)
+    if own:
+        fallback = FALLBACK
     return [HiZPass(quality, provides=p), trace, resolve,
             TemporalPass(quality, name="ssr_temporal", source=RESOLVED, output="ssr.temporal",
                          background=(0.0, 0.0, 0.0, 1.0), provides=p, max_history=16,

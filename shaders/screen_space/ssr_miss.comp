@@ -1,0 +1,87 @@
+// ssr_miss.comp — SSR's miss trace (issue 9 point 3): each (scaled) pixel's reflection ray,
+// the one ssr_trace.comp drew from the GGX lobe and marched on screen, traced again through
+// the scene's BVH with the shared ray tracer (lib/scene_rt.glsl), so that the share of the
+// lobe the screen did not find gets the light of what the ray really meets, hidden or off
+// screen, instead of DIRECT's shadowed world reflection (~0 where hidden geometry blocks the
+// ray). Run by SSRTracePass as its second dispatch (after a barrier: it reads the rays the
+// first one stored).
+// Radiance along the ray towards the reflecting pixel:
+//   hit: direct light at the hit, next-event estimation (shade_direct: one light by power, one
+//        point on it, one shadow ray; the hit's full BSDF seen from -L), plus the world's light
+//        on it with one cosine-sampled visibility ray (u_rt_world times its diffuse and glossy
+//        albedos where that ray escapes; as DIRECT lights a pixel by the world). A hit smoother
+//        than SSR_MISS_GLOSSY_MIN_ROUGHNESS (0.15) is shaded diffuse-only: one light sample of a
+//        near-mirror lobe is a firefly path (corridor, q1: the gold wall, which sees the mirror
+//        floor, relMSE 0.107 -> 0.188 with its glossy lobe, 0.105 without; a sun glint on a roughness-0.1 ball
+//        seen in a mirror: one 4.4 pixel in 2 frames; docs SSR.md). Emission of
+//        a hit emitter is NOT added: its glossy reflection is already in DIRECT's MIS glossy
+//        term, which SSR does not replace (only the world reflection aov.world_spec).
+//   miss (escapes): the world radiance u_rt_world (the sun disks are DIRECT's lights).
+// In:  u_ray0 (direction, pdf; pdf 0 = no ray), u_ray1 (hit pixel, confidence, distance).
+// Out: o_miss = (radiance, 1) for a traced ray, 0 where there is none; with SSR_MISS_OFF
+//      (param miss_trace = 0) 0 everywhere, and the resolve keeps aov.world_spec.
+#define USE_SCENE_BUFFERS
+#include "lib/common.glsl"
+#include "lib/rng.glsl"
+#include "lib/sampling.glsl"
+#include "lib/brdf.glsl"
+#include "lib/lights.glsl"
+#include "lib/screen.glsl"
+#include "screen_space/common.glsl"
+#ifndef SSR_MISS_OFF
+#include "lib/scene_rt.glsl"
+#endif
+
+layout(local_size_x = 8, local_size_y = 8) in;
+layout(binding = 0, rgba32f) uniform readonly image2D u_ray0;
+layout(binding = 1, rgba32f) uniform readonly image2D u_ray1;
+layout(binding = 2, rgba16f) uniform writeonly image2D o_miss;
+
+#ifndef SSR_MISS_OFF
+vec3 miss_radiance(vec3 O, vec3 L, inout Rng rng) {
+    SurfaceHit s;
+    if (!scene_trace(O, L, 0.0, T_INF, s)) return u_rt_world;
+    vec3 V = -L, Nh, Ngh, ph;
+    surface_frame(s, V, Nh, Ngh, ph);
+    Surface bs = s.bsdf;
+#ifndef SSR_MISS_GLOSSY_MIN_ROUGHNESS
+#define SSR_MISS_GLOSSY_MIN_ROUGHNESS 0.15
+#endif
+    if (bs.roughness < SSR_MISS_GLOSSY_MIN_ROUGHNESS) {
+    float layer = (bs.f0 > 1e-6 && bs.metallic < 1.0) ? dielectric_layer_albedo(bs, max(dot(Nh, V), 1e-4)) : 0.0;
+    bs.base_color *= (1.0 - bs.metallic) * (1.0 - layer);
+    bs.metallic = 0.0;
+    bs.f0 = 0.0;
+    }
+    vec3 c = shade_direct_at(bs, ph, Nh, Ngh, V, rng, false);
+    if (max3(u_rt_world) > 0.0) {
+        vec4 u = rng_next4(rng);
+        vec3 d = to_world(sample_cosine_hemisphere(u.xy), Nh);
+        if (dot(d, Ngh) > 0.0 && !scene_occluded(ph, d, 0.0, T_INF)) {
+            float NoV = max(dot(Nh, V), 1e-4);
+            c += u_rt_world * (diffuse_albedo(bs, NoV) + specular_albedo(bs, NoV));
+        }
+    }
+    return c;
+}
+#endif
+
+void main() {
+    ivec2 q = ivec2(gl_GlobalInvocationID.xy);
+    ivec2 osize = imageSize(o_miss);
+    if (any(greaterThanEqual(q, osize))) return;
+#ifdef SSR_MISS_OFF
+    imageStore(o_miss, q, vec4(0.0));
+#else
+    vec4 r0 = imageLoad(u_ray0, q);
+    if (!(r0.w > 0.0)) { imageStore(o_miss, q, vec4(0.0)); return; }
+    ivec2 px = ivec2((vec2(q) + 0.5) * u_resolution / vec2(osize));
+    GPixel g = fetch_g(px);
+    if (!g.valid) { imageStore(o_miss, q, vec4(0.0)); return; }
+    // from the G-buffer point moved off the surface (scale-aware, as DIRECT's shadow rays)
+    vec3 O = rt_offset_ray(g.P + g.Ng * (2e-5 * length(g.P - u_camera_pos) + 1e-6), g.Ng);
+    Rng rng = rng_init(uvec2(px), u_sample, 31u);
+    vec3 Lm = sanitize(miss_radiance(O, normalize(r0.xyz), rng));
+    imageStore(o_miss, q, vec4(Lm, 1.0));
+#endif
+}
