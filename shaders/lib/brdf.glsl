@@ -171,6 +171,18 @@ float dielectric_layer_albedo(Surface s, float NoV) {
     return clamp(max3(a), 0.0, 1.0);
 }
 
+// The surface's diffuse lobe alone, as a Surface (base colour times (1 - metallic) times
+// (1 - its dielectric layer's albedo seen from NoV), no specular): the lobe eval_principled
+// gives, for light paths one light sample per ray would turn into fireflies through the
+// glossy lobe (SSDO's traced senders, SSR's miss trace on near-mirror hits).
+Surface surface_diffuse_only(Surface s, float NoV) {
+    float layer = (s.f0 > 1e-6 && s.metallic < 1.0) ? dielectric_layer_albedo(s, NoV) : 0.0;
+    s.base_color *= (1.0 - s.metallic) * (1.0 - layer);
+    s.metallic = 0.0;
+    s.f0 = 0.0;
+    return s;
+}
+
 // Approximate albedo of the metal lobe (for lobe selection only).
 vec3 metal_albedo_estimate(Surface s, float NoV) {
     float E = ggx_E(s.roughness, NoV);

@@ -30,19 +30,14 @@ uniform float u_world_distance;
 // world, which DIRECT already lights with). Diffuse only, as for on-screen senders
 // (view_trust): a glossy hit's light toward the receiver is a caustic path, which one light
 // sample per ray turns into fireflies (glossy_spheres q2: relMSE 0.037 -> 0.080 with it). The
-// surface is made diffuse-only: base colour times (1 - metallic) (1 - its dielectric layer's
-// albedo), the diffuse lobe eval_principled gives.
+// surface is made diffuse-only (lib/brdf.glsl surface_diffuse_only).
 bool world_sender(vec3 O, vec3 dir, inout Rng rng, out vec3 L) {
     SurfaceHit s;
     L = vec3(0.0);
     if (!scene_trace(O, dir, 0.0, u_world_distance, s)) return false;
     vec3 V = -dir, Nh, Ngh, ph;
     surface_frame(s, V, Nh, Ngh, ph);
-    Surface d = s.bsdf;
-    float layer = (d.f0 > 1e-6 && d.metallic < 1.0) ? dielectric_layer_albedo(d, max(dot(Nh, V), 1e-4)) : 0.0;
-    d.base_color *= (1.0 - d.metallic) * (1.0 - layer);
-    d.metallic = 0.0;
-    d.f0 = 0.0;
+    Surface d = surface_diffuse_only(s.bsdf, max(dot(Nh, V), 1e-4));
     L = shade_direct_at(d, ph, Nh, Ngh, V, rng, false);
     return true;
 }

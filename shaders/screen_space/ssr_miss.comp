@@ -47,12 +47,7 @@ vec3 miss_radiance(vec3 O, vec3 L, inout Rng rng) {
 #ifndef SSR_MISS_GLOSSY_MIN_ROUGHNESS
 #define SSR_MISS_GLOSSY_MIN_ROUGHNESS 0.15
 #endif
-    if (bs.roughness < SSR_MISS_GLOSSY_MIN_ROUGHNESS) {
-    float layer = (bs.f0 > 1e-6 && bs.metallic < 1.0) ? dielectric_layer_albedo(bs, max(dot(Nh, V), 1e-4)) : 0.0;
-    bs.base_color *= (1.0 - bs.metallic) * (1.0 - layer);
-    bs.metallic = 0.0;
-    bs.f0 = 0.0;
-    }
+    if (bs.roughness < SSR_MISS_GLOSSY_MIN_ROUGHNESS) bs = surface_diffuse_only(bs, max(dot(Nh, V), 1e-4));
     vec3 c = shade_direct_at(bs, ph, Nh, Ngh, V, rng, false);
     if (max3(u_rt_world) > 0.0) {
         vec4 u = rng_next4(rng);
