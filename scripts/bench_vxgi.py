@@ -223,57 +223,148 @@ def leak(o, out):
     return rows
 
 
+def _stability_poses(sc, frames):
+    """The --stability path (deterministic): the light sweeps 0.71 m along x and sways in y,
+    the camera dollies 0.3 m and rises 0.12 m over 60 frames. Yields (k, scene data)."""
+    from gi_preview.blender import reference
+    from gi_preview.blender.export import export_scene
+
+    light = next(ob for ob in sc.objects if ob.type == "LIGHT")
+    cam = sc.camera
+    l0, c0 = light.location.copy(), cam.location.copy()
+    try:
+        for k in range(frames):
+            s = k / 10.0  # the 6-frame test's path, 10 times finer
+            light.location.x = l0.x - 0.3 + 0.12 * s
+            light.location.y = l0.y + 0.1 * math.sin(s)
+            cam.location.x = c0.x + 0.05 * s
+            cam.location.z = 1.0 + 0.02 * s
+            yield k, export_scene(reference.evaluated_depsgraph(sc))
+    finally:
+        light.location, cam.location = l0, c0
+
+
+def _stability_cycles(o, sc, frames, lock):
+    """Cycles "full" 64 spp on the --stability poses, cached in ``--cache`` (the poses and
+    Cycles' seed are deterministic)."""
+    import numpy as np
+    from gi_preview.blender import reference
+
+    path = os.path.join(o.cache, f"vxgi_stability_cycles_full_{frames}f_32px_64spp.npy")
+    if os.path.isfile(path):
+        return list(np.load(path))
+    cyc = []
+    for k, _sd in _stability_poses(sc, frames):
+        cyc.append(reference.render_cycles(sc, 64, "full")[0][..., :3].copy())
+        lock.frame(last=k == frames - 1)
+    os.makedirs(o.cache, exist_ok=True)
+    np.save(path, np.stack(cyc))
+    return cyc
+
+
+def _steps(seq, mask=None):
+    """Frame-to-frame mean |difference| (over the pixels where ``mask`` is False, per step)."""
+    import numpy as np
+
+    if mask is None:
+        return [float(np.abs(a - b).mean()) for a, b in zip(seq, seq[1:])]
+    return [float(np.abs(a - b).mean(-1)[~m].mean()) for a, b, m in zip(seq, seq[1:], mask)]
+
+
 def stability(o, out, frames=60):
     """60 frames, moving light and camera, one frame each with history kept (as the viewport
     and an animation after its first frame); the first frame needs no warm-up (the injection
     converges within a reset frame). DIRECT runs the same frames in the same run: its steps
-    are the G-buffer's own (edges at 32 px), the floor under any technique built on it."""
+    are the G-buffer's own (edges at 32 px), the floor under any technique built on it.
+
+    Each step is also split by pixel: the G-buffer-edge pixels of that step (normal or diffuse
+    colour changed by > 0.05: an edge crossed the pixel centre, bench_raster3d's mask) against
+    the rest, ours, DIRECT's and Cycles' on the same pixels; and VXGI's indirect light alone
+    (GI_IndirectDiffuse + GI_IndirectGlossy) stepping. ``--stability-first F`` renders only the
+    first F poses (screening; the row is printed and written under a ``_first`` key);
+    ``--stability-set PASS.PARAM=V`` changes a parameter (key gets ``--label``).
+    ``--lock-chunk N``: the script takes /tmp/gi_heavy.lock itself, gives it up every N frames
+    (run without an outer flock). Cycles' frames are cached in ``--cache``."""
     import bpy
     import numpy as np
-    from gi_preview.blender import demo_scenes, reference
-    from gi_preview.blender.export import export_scene
+    from bench_raster3d import HeavyLock, _overrides
+    from gi_preview.blender import demo_scenes
     from gi_preview.render import session
 
+    lock = o.heavy_lock if getattr(o, "heavy_lock", None) is not None else HeavyLock(o.lock_chunk)
+    lock.acquire()
     q = o.stability_quality
+    nk = o.stability_first or frames
     sc = demo_scenes.build_demo("cornell", resolution=32)
-    light = next(ob for ob in sc.objects if ob.type == "LIGHT")
-    cam = sc.camera
-    l0, c0 = light.location.copy(), cam.location.copy()
-    ours, direct, cyc, mins, finite, ms = [], [], [], [], True, []
-    for k in range(frames):
-        s = k / 10.0  # the 6-frame test's path, 10 times finer
-        light.location.x = l0.x - 0.3 + 0.12 * s
-        light.location.y = l0.y + 0.1 * math.sin(s)
-        cam.location.x = c0.x + 0.05 * s
-        cam.location.z = 1.0 + 0.02 * s
-        sd = export_scene(reference.evaluated_depsgraph(sc))
+    cyc = _stability_cycles(o, sc, frames, lock)[:nk]
+    props = _overrides(argparse.Namespace(set=o.stability_set))
+    if props:
+        session.set_pass_properties("bench_vxgi_motion", props, "VXGI", q)
+    ours, ind, direct, gbs, mins, finite, ms = [], [], [], [], [], True, []
+    t0 = time.time()
+    for k, sd in _stability_poses(sc, nk):
         r = session.render(sd, "VXGI", q, 1, keep_history=True, session="bench_vxgi_motion")
-        img = r.image[..., :3]
+        img = r.image[..., :3].copy()
         finite &= bool(np.isfinite(img).all())
         mins.append(float(img.min()))
         ms.append(r.frame_ms)
         ours.append(img)
-        direct.append(session.render(sd, "DIRECT", q, 1, keep_history=True, session="bench_vxgi_direct").image[..., :3])
-        cyc.append(reference.render_cycles(sc, 64, "full")[0][..., :3])
-    session.release_session("bench_vxgi_motion")
-    session.release_session("bench_vxgi_direct")
+        ind.append((r.aovs["GI_IndirectDiffuse"][..., :3] + r.aovs["GI_IndirectGlossy"][..., :3]).copy())
+        gbs.append(np.concatenate([r.aovs["Normal"][..., :3], r.aovs["DiffCol"][..., :3]], -1).copy())
+        direct.append(session.render(sd, "DIRECT", q, 1, keep_history=True,
+                                     session="bench_vxgi_direct").image[..., :3].copy())
+        lock.frame(last=k == nk - 1)
+    wall = time.time() - t0
+    for name in ("bench_vxgi_motion", "bench_vxgi_direct"):
+        fut = session.release_session(name)
+        if fut is not None:
+            fut.result()
+    lock.release()
     bpy.data.scenes.remove(sc)
+    if o.stability_save:
+        np.savez_compressed(o.stability_save, ours=np.stack(ours), indirect=np.stack(ind), direct=np.stack(direct),
+                            gbuffer=np.stack(gbs), cycles=np.stack(cyc))
 
-    def steps(seq):
-        return [float(np.abs(a - b).mean()) for a, b in zip(seq, seq[1:])]
-    d_ours, d_dir, d_cyc = steps(ours), steps(direct), steps(cyc)
-    row = {"frames": frames, "quality": q, "finite": finite, "min": min(mins), "ours_max_diff": max(d_ours),
-           "ours_mean_diff": float(np.mean(d_ours)), "cycles_max_diff": max(d_cyc),
-           "cycles_mean_diff": float(np.mean(d_cyc)), "direct_max_diff": max(d_dir),
+    edge = [np.abs(a - b).max(-1) > 0.05 for a, b in zip(gbs, gbs[1:])]
+    d_ours, d_dir, d_cyc, d_ind = _steps(ours), _steps(direct), _steps(cyc), _steps(ind)
+    e_ours, e_dir, e_cyc = _steps(ours, edge), _steps(direct, edge), _steps(cyc, edge)
+    cmax, cmean = max(d_cyc), float(np.mean(d_cyc))
+    am = int(np.argmax(d_ours))  # step am: frame am -> am + 1
+    # the largest step's share on its edge pixels (sum of |diff| there over the whole sum)
+    a, b, e = ours[am], ours[am + 1], edge[am]
+    tot = np.abs(a - b).mean(-1)
+    row = {"frames": nk, "quality": q, "label": o.label or "default", "props": props, "finite": finite,
+           "min": min(mins), "ours_max_diff": max(d_ours),
+           "ours_mean_diff": float(np.mean(d_ours)), "cycles_max_diff": cmax,
+           "cycles_mean_diff": cmean, "direct_max_diff": max(d_dir),
            "direct_mean_diff": float(np.mean(d_dir)), "first_step": d_ours[0], "cycles_first_step": d_cyc[0],
            "ours_max_after_first": max(d_ours[1:]),
-           "above_cycles_max": int(sum(d > max(d_cyc) for d in d_ours)),
-           "direct_above_cycles_max": int(sum(d > max(d_cyc) for d in d_dir)),
-           "argmax": int(np.argmax(d_ours)), "direct_argmax": int(np.argmax(d_dir)),
-           "frame_ms_median": float(np.median(ms)),
+           "ratio_mean": float(np.mean(d_ours)) / cmean, "ratio_max": max(d_ours) / cmax,
+           "above_cycles_max": int(sum(d > cmax for d in d_ours)),
+           "above_steps": [i for i, d in enumerate(d_ours) if d > cmax],
+           "direct_above_cycles_max": int(sum(d > cmax for d in d_dir)),
+           "argmax": am, "direct_argmax": int(np.argmax(d_dir)),
+           "at_argmax": {"ours_x": d_ours[am] / cmax, "direct_x": d_dir[am] / cmax, "cycles_x": d_cyc[am] / cmax,
+                         "indirect": d_ind[am], "indirect_mean": float(np.mean(d_ind)),
+                         "edge_px": int(e.sum()), "edge_share": float(tot[e].sum() / max(tot.sum(), 1e-12)),
+                         "no_edges_ours": e_ours[am], "no_edges_direct": e_dir[am], "no_edges_cycles": e_cyc[am]},
+           "ratio_mean_no_edges": float(np.mean(e_ours) / np.mean(e_cyc)),
+           "ratio_max_no_edges": float(max(e_ours) / max(e_cyc)), "max_no_edges_at": int(np.argmax(e_ours)),
+           "direct_ratio_max_no_edges": float(max(e_dir) / max(e_cyc)),
+           "indirect_mean_diff": float(np.mean(d_ind)), "indirect_max_diff": max(d_ind),
+           "indirect_argmax": int(np.argmax(d_ind)),
+           "frame_ms_median": float(np.median(ms)), "wall_s": round(wall, 1),
            "ours_diffs": [round(x, 5) for x in d_ours], "direct_diffs": [round(x, 5) for x in d_dir],
-           "cycles_diffs": [round(x, 5) for x in d_cyc]}
-    print(json.dumps(row), flush=True)
+           "cycles_diffs": [round(x, 5) for x in d_cyc], "indirect_diffs": [round(x, 5) for x in d_ind],
+           "ours_diffs_no_edges": [round(x, 5) for x in e_ours], "direct_diffs_no_edges": [round(x, 5) for x in e_dir],
+           "cycles_diffs_no_edges": [round(x, 5) for x in e_cyc], "edge_px": [int(x.sum()) for x in edge]}
+    print(json.dumps({k: v for k, v in row.items() if not k.endswith(("diffs", "no_edges", "edge_px"))}), flush=True)
+    print(f"stability VXGI q{q} [{row['label']}] {nk} frames: finite {finite}, min {row['min']:.3g}, mean step "
+          f"{row['ratio_mean']:.3f}x Cycles', largest {row['ratio_max']:.3f}x (step {am}; DIRECT there "
+          f"{row['at_argmax']['direct_x']:.3f}x, edge share {row['at_argmax']['edge_share']:.2f}), "
+          f"{row['above_cycles_max']} above; without edge pixels {row['ratio_mean_no_edges']:.3f}x / "
+          f"{row['ratio_max_no_edges']:.3f}x (step {row['max_no_edges_at']}; DIRECT {row['direct_ratio_max_no_edges']:.3f}x); "
+          f"{row['frame_ms_median']:.0f} ms/frame", flush=True)
     return row
 
 
@@ -437,6 +528,13 @@ def main(argv=None):
     p.add_argument("--img-quality", type=int, default=0)
     p.add_argument("--res", type=int, default=48)
     p.add_argument("--stability-quality", type=int, default=1, help="quality level of --stability")
+    p.add_argument("--stability-first", type=int, default=0, help="--stability: only the first F poses (screening)")
+    p.add_argument("--stability-set", action="append", help="--stability: PASS.PARAM=VALUE (repeatable)")
+    p.add_argument("--stability-save", default="", help="--stability: write the frames into this .npz")
+    p.add_argument("--label", default="", help="--stability: name of the --stability-set configuration")
+    p.add_argument("--lock-chunk", type=int, default=0, help="--stability: take /tmp/gi_heavy.lock in the "
+                   "script and give it up every N frames (run WITHOUT an outer flock); 0: the caller holds it")
+    p.add_argument("--cache", default="/tmp/gi_bench_vxgi_cache", help="--stability: Cycles' frames")
     p.add_argument("--qualities", default="0,1,2,3", help="quality levels of --accuracy and --sweep (--leak: those <= 1)")
     p.add_argument("--ref-spp", type=int, default=128)
     p.add_argument("--samples", type=int, default=4)
@@ -455,6 +553,12 @@ def main(argv=None):
     if os.path.exists(path):
         with open(path) as f:
             data = json.load(f)
+    if o.lock_chunk:  # take the lock before Blender's import (the heavy part of the start)
+        sys.path.insert(0, HERE)
+        from bench_raster3d import HeavyLock
+
+        o.heavy_lock = HeavyLock(o.lock_chunk)
+        o.heavy_lock.acquire()
     _setup()
     if o.images:
         images(o, o.out)
@@ -463,6 +567,9 @@ def main(argv=None):
     t0 = time.time()
     for s in chosen:
         key = s if s != "stability" or o.stability_quality == 1 else f"stability_q{o.stability_quality}"
+        if s == "stability" and (o.label or o.stability_first):
+            key = f"stability_q{o.stability_quality}" + (f"_{o.label}" if o.label else "") + (
+                f"_first{o.stability_first}" if o.stability_first else "")
         data[key] = {"audit": audit, "accuracy": accuracy, "leak": leak, "stability": stability, "sweep": sweep}[s](o, o.out)
         with open(path, "w") as f:
             json.dump(data, f, indent=1)

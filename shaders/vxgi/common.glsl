@@ -42,6 +42,7 @@ int vx_bucket_offset(int b) { return 1 + b * VX_BUCKET; }
 uniform int u_vx_n;                          // voxels per side of one cascade
 uniform int u_vx_cascades;                   // cascades (cell size doubles)
 uniform int u_vx_levels;                     // mip levels usable inside a cascade
+uniform int u_vx_moving_levels;              // levels read in the cascades that move (all but the coarsest)
 uniform vec4 u_vx_origin[VX_MAX_CASCADES];   // xyz corner (world), w = voxel size
 
 // Finest cascade whose box, shrunk by `margin` voxels, contains p; -1 if none.
@@ -115,8 +116,11 @@ vec4 vx_sample(vec3 p, float diam, vec3 d, out float width) {
     for (int c = 0; c < u_vx_cascades; ++c) {
         vec4 o = u_vx_origin[c];
         float lod = log2(max(diam / o.w, 1.0));
-        if (lod > max_lod && c < u_vx_cascades - 1) continue;  // a coarser cascade filters wider
-        lod = min(lod, max_lod);
+        // a cascade that follows the camera is read only at the mips its snap keeps in place
+        // (aligned_mips); wider footprints go to the next cascade (its mip one level down)
+        float top = c < u_vx_cascades - 1 ? float(min(u_vx_levels, u_vx_moving_levels) - 1) : max_lod;
+        if (lod > top && c < u_vx_cascades - 1) continue;  // a coarser cascade filters wider
+        lod = min(lod, top);
         vec3 l = (p - o.xyz) / (o.w * n);
         if (any(lessThan(l, vec3(0.0))) || any(greaterThan(l, vec3(1.0)))) continue;
         float h = 0.5 * exp2(ceil(lod)) / n;  // half a texel of the coarser of the two mips

@@ -5,7 +5,9 @@
   of the previous one's; the coarsest covers the scene's bounds, the finer ones are
   centred on the camera and clamped into the scene's box; corners are snapped to 4 voxels
   of their cascade (a camera move shifts a grid by whole voxels, and mip levels 0-2 keep
-  their cells). Conservative voxelisation by geometry-shader dominant-axis projection of
+  their cells; with ``aligned_mips``, the default, a moving cascade is read at those levels
+  only and wider footprints go to the next cascade, so a snap does not shift the texels a
+  cone reads: the coarsest cascade never moves). Conservative voxelisation by geometry-shader dominant-axis projection of
   each triangle, enlarged by half a pixel (plus ``thickness`` voxels) per edge, then an
   exact triangle/box overlap test for every voxel of the fragment's column
   (``shaders/vxgi/voxelize.*``). Chosen over a compute voxeliser because llvmpipe's
@@ -55,6 +57,7 @@ VOXELS, GRID, RADIANCE = "vxgi.voxels", "vxgi.grid", "vxgi.radiance"
 DIFFUSE, GLOSSY, AO, DEBUG = "vxgi.diffuse", "vxgi.glossy", "vxgi.ao", "vxgi.debug"
 VX_REC = 1 + 6 * 8  # words per voxel record: bucket mask + 6 orientation buckets (shaders/vxgi/common.glsl)
 MAX_CASCADES = 4
+SNAP = 4  # voxels: the cascades' corners move in steps of this many of their voxels
 BINDING_RECORDS = 5
 BINDING_LIST = 4
 GI = frozenset({Effect.INDIRECT_DIFFUSE, Effect.INDIRECT_SPECULAR, Effect.AO})
@@ -72,8 +75,11 @@ def mip_levels(n: int) -> int:
 class VoxelGrid:
     """Host resource: this frame's cascades, (corner, voxel size) each, finest first."""
 
-    def __init__(self, origins=(), n: int = 0):
+    def __init__(self, origins=(), n: int = 0, moving_levels: int = 0):
         self.origins, self.n = list(origins), int(n)
+        # mip levels the cascades that follow the camera (all but the coarsest) may be read at
+        # (0: all of them); see VoxelizePass's aligned_mips
+        self.moving_levels = int(moving_levels)
 
     @property
     def cascades(self) -> int:
@@ -98,6 +104,8 @@ class VoxelGrid:
         set_uniform(prog, "u_vx_n", self.n)
         set_uniform(prog, "u_vx_cascades", self.cascades)
         set_uniform(prog, "u_vx_levels", self.levels)
+        ml = self.levels if self.moving_levels <= 0 else min(self.levels, self.moving_levels)
+        set_uniform(prog, "u_vx_moving_levels", ml)
 
     def extent(self) -> float:
         """Side of the coarsest cascade (world units)."""
@@ -157,6 +165,10 @@ class VoxelizePass(Pass):
         Param("cascades", 2, 1, MAX_CASCADES, "cascades centred on the camera (voxel size doubles)"),
         Param("voxel_size", 0.0, 0.0, 100.0, "finest voxel size (0 = the coarsest cascade holds the scene)"),
         Param("thickness", 1.0, 0.0, 2.0, "voxelisation dilation in voxels (thicker walls against leaks)"),
+        Param("aligned_mips", True, doc="the cascades that follow the camera (all but the coarsest) are read "
+              "only at the mips whose texels their 4-voxel snap keeps in place (levels 0-2); wider footprints "
+              "read the next cascade. Otherwise a snap shifts their coarser mips' texels by a fraction and the "
+              "indirect light steps"),
     )
     quality_ladder = ({"resolution": 32}, {"resolution": 48}, {"resolution": 64}, {"resolution": 96})
 
@@ -185,7 +197,8 @@ class VoxelizePass(Pass):
 
         n, C = int(self["resolution"]), int(self["cascades"])
         self._ensure(rc, n, C)
-        self.grid = VoxelGrid(voxel_cascades(rc.scene.scene, frame, n, C, float(self["voxel_size"])), n)
+        self.grid = VoxelGrid(voxel_cascades(rc.scene.scene, frame, n, C, float(self["voxel_size"]), snap=SNAP), n,
+                              int(math.log2(SNAP)) + 1 if self["aligned_mips"] else 0)
         rc.resources[VOXELS] = self.buf
         rc.resources[GRID] = self.grid
         prog = rc.programs.program("vxgi/voxelize.vert", "vxgi/voxelize.frag", geometry="vxgi/voxelize.geom")
