@@ -31,7 +31,9 @@ sample's opacity the largest of its three directional faces', edge opacity 0.1, 
 against DIRECT's 0.108/0.080. Sixth session (axis_box, opaque_radiance): Cornell mean
 q0-q3 within +-15 % at three grid placements (q2 0.904, q3 0.907 at the default grid; before
 0.816/0.813), at the cost of a larger thin-wall leak (q0 0.016 -> 0.023) and q1 flicker
-(largest step 1.21x -> 1.37x Cycles'; seventh session, box_ramp 0.5: 1.30x, but q0 1.23x -> 1.46x; leak 0.0205), see the page. Energy audit
+(largest step 1.21x -> 1.37x Cycles'; seventh session, box_ramp 0.5: 1.30x, but q0 1.23x -> 1.46x; leak 0.0205), see the page.
+Eighth session: the q0 1.46x was the fine cascade's 4-voxel snap shifting its mips 3+; aligned_mips (vxgi_voxelize,
+on) reads a moving cascade at mips 0-2 only. The remaining largest steps (q1-q3, step 16) sit on G-buffer edges. Energy audit
 (closed-box furnace, ideal 1): 0.69 at the defaults, 0.87 with edge opacity 0
 (docs/techniques/VXGI.md).
 
