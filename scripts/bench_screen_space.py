@@ -72,6 +72,9 @@ def main(argv=None):
     p.add_argument("--cache", default=None)
     p.add_argument("--repro", default="", help="issue 9's reproduction scenes instead of the demo scenes")
     p.add_argument("--motion", default="", help="reflection lag under camera motion on these reproduction scenes")
+    p.add_argument("--motion-miss", type=int, default=0, help="with --motion: also SSR with miss_trace 1, its "
+                   "fallback accumulated (ssr_fallback_temporal) and of one frame (no temporal pass), each "
+                   "against a still render with miss_trace 1 of this many frames (e.g. 64)")
     p.add_argument("--tables", default="", help="print the pages' tables of TECH from <out>/screen_space_results.json")
     p.add_argument("--before", default="", help="with --tables: an earlier results JSON, shown beside")
     p.add_argument("--seeds", default="", help="run-to-run noise: offsets added to every frame's seed "
@@ -374,12 +377,26 @@ def motion(opts):
     step = np.array([0.0, 0.08, 0.0])
     frames = 12
     out = {"res": opts.res, "frames": frames, "step": step.tolist(), "scenes": {}}
+    class SSRMissOneFrame(SSR):
+        id = "SSR_MISS_ONE_FRAME"
+
+        def passes(self, q):
+            return [GBufferPass(q), ShadowPass(q), DirectLightPass(q), *ssr_passes(q, fallback_reproject="none")]
+
     variants = {"reflected_point": "SSR", "surface_motion": SSRSurfaceMotion.id}
+    miss_variants = {}
+    if opts.motion_miss:
+        techniques.REGISTRY[SSRMissOneFrame.id] = SSRMissOneFrame
+        miss_variants = {"miss_temporal": "SSR", "miss_one_frame": SSRMissOneFrame.id}
+        out["miss_truth_frames"] = opts.motion_miss
     for name in [s for s in opts.motion.split(",") if s]:
         sc = S.build(name, opts.res)
         sd = export_scene(reference.evaluated_depsgraph(sc))
         mask = S.masks(name, sd, S.material_ids(sd))["reflective"]
-        errs = {v: [] for v in variants}
+        errs = {v: [] for v in (*variants, *miss_variants)}
+        for key, tech in (("motion_truth_miss", "SSR"), *(("motion_" + v, t) for v, t in miss_variants.items())):
+            if miss_variants:
+                session.set_pass_properties(key, {"ssr_trace": {"miss_trace": 1}}, technique=tech, quality=1)
         for k in range(frames):
             moved = copy.deepcopy(sd)
             m = moved.camera.matrix_world.astype(np.float64).copy()
@@ -391,16 +408,27 @@ def motion(opts):
                 errs[v].append(metrics.relmse(img, truth, mask=mask))
                 if k == frames - 1:
                     imageio.write_png(os.path.join(opts.out, f"motion_{name}_{v}.png"), metrics.view_standard(img))
+            if miss_variants:
+                truth_m = session.render(moved, "SSR", 1, opts.motion_miss, session="motion_truth_miss").image
+            for v, tech in miss_variants.items():
+                img = session.render(moved, tech, 1, 1, keep_history=True, session="motion_" + v).image
+                errs[v].append(metrics.relmse(img, truth_m, mask=mask))
+                if k == frames - 1:
+                    imageio.write_png(os.path.join(opts.out, f"motion_{name}_{v}.png"), metrics.view_standard(img))
             if k == frames - 1:
                 imageio.write_png(os.path.join(opts.out, f"motion_{name}_still16.png"), metrics.view_standard(truth))
-        for key in ["motion_truth"] + ["motion_" + v for v in variants]:
+                if miss_variants:
+                    imageio.write_png(os.path.join(opts.out, f"motion_{name}_miss_still{opts.motion_miss}.png"),
+                                      metrics.view_standard(truth_m))
+        for key in ["motion_truth", "motion_truth_miss"] + ["motion_" + v for v in (*variants, *miss_variants)]:
             session.release_session(key)
         entry = {v: {"per_frame": e, "mean_frames_4_12": float(np.mean(e[3:]))} for v, e in errs.items()}
         out["scenes"][name] = entry
-        log(f"{name}: reflection error vs a still 16-frame render, frames 4-12: " + ", ".join(
-            f"{v} {entry[v]['mean_frames_4_12']:.4f}" for v in variants))
+        log(f"{name}: reflection error vs a still render, frames 4-12: " + ", ".join(
+            f"{v} {entry[v]['mean_frames_4_12']:.4f}" for v in entry))
         bpy_scene_remove(sc)
     techniques.REGISTRY.pop(SSRSurfaceMotion.id, None)
+    techniques.REGISTRY.pop(SSRMissOneFrame.id, None)
     path = os.path.join(REPO, "docs", "results", "screen_space_motion.json")
     with open(path, "w") as f:
         json.dump(out, f, indent=1, default=float)

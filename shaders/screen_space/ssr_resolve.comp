@@ -31,6 +31,10 @@
 // this frame missed (all found, a < 1 only through the temporal mean), the mean over every
 // traced ray (w); where no ray was traced (too rough, no glossy lobe, miss_trace off) DIRECT's
 // aov.world_spec, so that the composite's result is then exactly the one without the trace.
+// o_miss_dist: how far behind the surface the fallback's reflected point lies, for its own
+// temporal pass (ssr_fallback_temporal, reprojected like ssr_temporal by the virtual image
+// point): the rays' distances (ssr_miss.comp; escaped rays count as far away) averaged as
+// parallax, 1 / (camera distance + length), with the fallback's weights; 0 = no ray.
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/rng.glsl"
@@ -48,6 +52,7 @@ uniform sampler2D u_ray1;
 uniform sampler2D u_radiance;
 #ifdef SSR_MISS
 layout(binding = 2, rgba32f) uniform writeonly image2D o_fallback;
+layout(binding = 3, r32f) uniform writeonly image2D o_miss_dist;  // the fallback's reflected distance, 0 = none
 uniform sampler2D u_miss;        // ssr_miss.comp: radiance along each traced ray, a = 1 traced
 uniform sampler2D u_world_spec;  // DIRECT's shadowed world reflection
 #define STORE_FALLBACK(v) imageStore(o_fallback, px, vec4(v, 1.0))
@@ -67,6 +72,9 @@ void main() {
     vec3 world_spec = texelFetch(u_world_spec, px, 0).rgb;
 #endif
     STORE_FALLBACK(world_spec);
+#ifdef SSR_MISS
+    imageStore(o_miss_dist, px, vec4(0.0));
+#endif
     if (!g.valid) { imageStore(o_spec, px, vec4(0.0)); return; }
     Surface s = fetch_surface(px, g.mid);
     vec3 V = view_dir(g.P);
@@ -84,7 +92,8 @@ void main() {
     float cover = 0.0, wsum = 0.0, dsum = 0.0;
 #ifdef SSR_MISS
     vec3 msum = vec3(0.0), tsum = vec3(0.0);
-    float mw = 0.0, tw = 0.0;
+    float mw = 0.0, tw = 0.0, mpar = 0.0, tpar = 0.0;
+    float dcam = length(g.P - u_camera_pos);
 #endif
     int n = max(u_resolve_samples, 1);
     for (int k = 0; k < n; ++k) {
@@ -131,18 +140,25 @@ void main() {
         wsum += w;
 #ifdef SSR_MISS
         vec4 lm = texelFetch(u_miss, qq, 0);
-        if (lm.a > 0.5) {
+        if (lm.a > 0.0) {
+            // parallax of the virtual image point ~ 1 / (camera distance + ray length)
+            float par = 1.0 / (dcam + lm.a);
             msum += w * (1.0 - conf) * lm.rgb;
+            mpar += w * (1.0 - conf) * par;
             mw += w * (1.0 - conf);
             tsum += w * lm.rgb;
+            tpar += w * par;
             tw += w;
         }
 #endif
     }
 #ifdef SSR_MISS
     vec3 ks = specular_albedo(s, NoV);
-    if (mw > 1e-6 * tw && mw > 0.0) STORE_FALLBACK(sanitize(ks * msum / mw));
-    else if (tw > 0.0) STORE_FALLBACK(sanitize(ks * tsum / tw));
+    float par = 0.0;
+    if (mw > 1e-6 * tw && mw > 0.0) { STORE_FALLBACK(sanitize(ks * msum / mw)); par = mpar / mw; }
+    else if (tw > 0.0) { STORE_FALLBACK(sanitize(ks * tsum / tw)); par = tpar / tw; }
+    // distance behind the mirror of the point whose parallax is the rays' mean parallax
+    if (par > 0.0) imageStore(o_miss_dist, px, vec4(max(1.0 / par - dcam, 1e-4)));
 #endif
     imageStore(o_hit_dist, px, vec4(cover > 1e-6 ? dsum / cover : 0.0));
     vec3 res = wsum > 0.0 ? sum / wsum : vec3(0.0);

@@ -46,6 +46,15 @@ vec2 prev_pixel(vec3 X) {
 }
 #endif
 
+#ifdef HISTORY_CLAMP
+// Neighbourhood clamp (Karis 2014), for a signal whose history can lag behind the image in a
+// way the geometric tests cannot see (SSR's miss fallback: a highlight seen in a mirror moves
+// with neither the mirror nor the hit point): while u_clamp is 1 (the camera moves) the
+// reprojected history is clamped to the range of this frame's signal over the 3x3 pixels
+// around this one. A still camera keeps the plain running mean.
+uniform int u_clamp;
+#endif
+
 vec4 upsample(ivec2 px, vec3 P, vec3 N) {
     ivec2 csize = textureSize(u_current, 0);
     if (csize == ivec2(u_resolution)) return texelFetch(u_current, px, 0);
@@ -119,14 +128,16 @@ void main() {
                 ivec2 t = b + ivec2(i, j);
                 if (any(lessThan(t, ivec2(0))) || any(greaterThanEqual(t, hsize))) continue;
                 vec4 hp = texelFetch(u_hist_pos, t, 0);
-                if (hp.w <= 0.0) continue;
+                if (!(hp.w > 0.0) || isinf(hp.w)) continue;   // no history (NaN-safe: a NaN tap is none)
+                vec4 hv = texelFetch(u_hist, t, 0);
+                if (any(isnan(hv)) || any(isinf(hv)) || any(isnan(hp.xyz))) continue;
                 vec3 hn = texelFetch(u_hist_nrm, t, 0).xyz;
                 vec3 dp = hp.xyz - P;
                 // the tap's surface point must land within ~1.5 pixels of this pixel now
                 vec2 tp = to_pixel(hp.xyz) - (vec2(px) + 0.5);
-                if (abs(dot(N, dp)) > tol || (!by_hit && dot(tp, tp) > 2.25) || dot(hn, N) < 0.9) continue;
+                if (abs(dot(N, dp)) > tol || (!by_hit && dot(tp, tp) > 2.25) || !(dot(hn, N) >= 0.9)) continue;
                 float w = (i == 0 ? 1.0 - f.x : f.x) * (j == 0 ? 1.0 - f.y : f.y);
-                hsum += w * texelFetch(u_hist, t, 0);
+                hsum += w * hv;
                 lsum += w * hp.w;
                 wsum += w;
             }
@@ -134,6 +145,21 @@ void main() {
             hist = hsum / wsum;
             len = lsum / wsum;
         }
+#ifdef HISTORY_CLAMP
+        if (u_clamp != 0 && len > 0.0) {
+            vec3 lo = cur.rgb, hi = cur.rgb;
+            for (int j = -1; j <= 1; ++j)
+                for (int i = -1; i <= 1; ++i) {
+                    ivec2 q = px + ivec2(i, j);
+                    if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, ivec2(u_resolution)))) continue;
+                    if (texelFetch(u_gb_position, q, 0).w < 0.0) continue;
+                    vec3 c = sanitize(upsample(q, P, N).rgb);
+                    lo = min(lo, c);
+                    hi = max(hi, c);
+                }
+            hist.rgb = clamp(hist.rgb, lo, hi);
+        }
+#endif
     }
     float n = min(len + 1.0, max(u_max_history, 1.0));
     vec4 outv = len > 0.0 ? mix(hist, cur, 1.0 / n) : cur;

@@ -163,8 +163,9 @@ class TemporalPass(ScreenPass):
     )
 
     def __init__(self, quality=None, *, source: str, output: str, background=(1.0, 1.0, 1.0, 1.0),
-                 resets=ALL_EVENTS, hit_distance: str | None = None, **kw):
+                 resets=ALL_EVENTS, hit_distance: str | None = None, clamp: bool = False, **kw):
         super().__init__(quality, **kw)
+        self.clamp = clamp  # neighbourhood clamp of the history while the camera moves (temporal.comp HISTORY_CLAMP)
         self.source, self.output = source, output
         self.hit_distance = hit_distance  # reflections: reproject by the reflected point (temporal.comp)
         self.len_name = output + ".len"
@@ -180,8 +181,9 @@ class TemporalPass(ScreenPass):
         self.prev_vp = None
 
     def execute(self, rc, frame):
-        prog = rc.programs.compute("screen_space/temporal.comp",
-                                   {"REFLECTION_REPROJECT": 1} if self.hit_distance else None)
+        defines = {**({"REFLECTION_REPROJECT": 1} if self.hit_distance else {}),
+                   **({"HISTORY_CLAMP": 1} if self.clamp else {})}
+        prog = rc.programs.compute("screen_space/temporal.comp", defines or None)
         bind_frame(rc, prog, frame)
         units = Units(1)
         res = rc.resources
@@ -199,6 +201,8 @@ class TemporalPass(ScreenPass):
         self.prev_vp = vp
         set_uniform(prog, "u_reset", 0 if self.history_valid else 1)
         set_uniform(prog, "u_max_history", float(self["max_history_moving"] if moving else self["max_history"]))
+        if self.clamp:
+            set_uniform(prog, "u_clamp", 1 if moving else 0)
         set_uniform(prog, "u_background", self.background)
         res[self.output].bind_to_image(0, read=False, write=True)
         res[self.len_name].bind_to_image(1, read=False, write=True)

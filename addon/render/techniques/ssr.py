@@ -16,7 +16,11 @@ screen — misses, untrusted hits — is ``ssr.fallback``: with ``miss_trace`` (
 ``ssr_trace`` traces the same rays again through the scene's BVH (second dispatch,
 ``ssr_miss.comp``: direct light at the hit with one shadow ray, the world's light on it with one
 visibility ray, the world where the ray escapes) and ``ssr_resolve`` averages them over the
-same neighbours, weighted by the share each left unfound. Surfaces rougher than
+same neighbours, weighted by the share each left unfound; ``ssr_fallback_temporal`` (the shared
+temporal pass) accumulates that fallback over frames — history reprojected by the virtual image
+point at the miss rays' mean distance ``ssr.miss_dist``, clamped to the current 3x3
+neighbourhood while the camera moves, 16 frames still / 4 moving; with ``miss_trace`` 0 it keeps
+no history and passes ``aov.world_spec`` through unchanged. Surfaces rougher than
 ``max_roughness`` (no rays) and ``miss_trace`` 0 keep ``aov.world_spec``. ``ssr_passes`` lets
 another technique pass its own fallback, which turns the miss trace off). Radiance at a hit is the
 direct-lit colour without emission (one bounce; emitters' glossy reflection is DIRECT's).
@@ -37,7 +41,8 @@ See docs/techniques/SSR.md.
 | miss_trace | 0/1 | trace the rays through the scene for the share not found on screen |
 
 Quality ladder (steps, resolve, scale, miss_trace): 0 = 32, 4, 1, 0; 1 = 64, 6, 1, 0; 2 = 128, 8, 1, 0;
-3 = 256, 12, 1, 0 (miss_trace off by default: see docs/techniques/SSR.md, fifth session).
+3 = 256, 12, 1, 0 (miss_trace off by default: see docs/techniques/SSR.md, fifth and sixth sessions:
+with its temporal pass the moving-camera error is halved but still ~2x the screen-only default's).
 """
 from __future__ import annotations
 
@@ -52,7 +57,8 @@ from .direct import DIRECT_OUTPUTS, DirectLightPass
 
 SSR_PROVIDES = frozenset({Effect.INDIRECT_SPECULAR})
 RAY0, RAY1, RESOLVED, HIT_DIST = "ssr.ray0", "ssr.ray1", "ssr.raw", "ssr.hit_dist"
-MISS, FALLBACK = "ssr.miss", "ssr.fallback"
+MISS, FALLBACK, MISS_DIST = "ssr.miss", "ssr.fallback", "ssr.miss_dist"
+FALLBACK_TEMPORAL = "ssr.fallback_temporal"
 
 
 class SSRTracePass(ScreenPass):
@@ -71,14 +77,16 @@ class SSRTracePass(ScreenPass):
     # q0 traces at full resolution: at half resolution (measured, glossy_spheres 96 px) the
     # reflections of the curved spheres lost detail (relMSE 0.0274 vs 0.0229), for ~1 ms
     # miss_trace off at every level: on, F12 renders improve everywhere measured (SSR.md, fifth
-    # session) but its one ray per pixel per frame is not accumulated over time, so a moving
-    # viewport's frames are noisy (corridor dolly, one frame per call: 0.41 vs 0.07 masked relMSE)
+    # session); a moving viewport's frames are noisy: corridor dolly, one frame per call, masked
+    # relMSE vs a still render 0.131 with ssr_fallback_temporal (0.266 without) vs 0.067 off
+    # (SSR.md, sixth session)
     quality_ladder = ({"steps": 32, "scale": 1.0, "miss_trace": 0}, {"steps": 64, "scale": 1.0, "miss_trace": 0},
                       {"steps": 128, "scale": 1.0, "miss_trace": 0}, {"steps": 256, "scale": 1.0, "miss_trace": 0})
     reads = (ALBEDO, NORMAL, POSITION, GEONORMAL, HIZ)
     writes = (RAY0, RAY1)
     declared = (Res(RAY0, scale="scale"), Res(RAY1, scale="scale"))
     history_resets = frozenset()
+    miss_defines: dict = {}  # extra defines of ssr_miss.comp (benches: SSR_MISS_NO_MIS, ...)
 
     def __init__(self, quality=None, *, miss: bool = False, **kw):
         """miss: also write ``ssr.miss`` (ssr_miss.comp: the rays traced through the scene
@@ -118,7 +126,7 @@ class SSRTracePass(ScreenPass):
         on = int(self["miss_trace"]) > 0
         if on:
             rt = rc.scene.rt()
-            prog = rc.programs.compute("screen_space/ssr_miss.comp", rt.defines)
+            prog = rc.programs.compute("screen_space/ssr_miss.comp", {**rt.defines, **self.miss_defines})
             rt.bind(prog)
         else:
             prog = self.program(rc, "screen_space/ssr_miss.comp", {"SSR_MISS_OFF": 1})
@@ -157,8 +165,9 @@ class SSRResolvePass(ScreenPass):
         self.miss = miss
         if miss:
             self.reads = self.reads + (MISS, WORLD_SPEC)
-            self.writes = self.writes + (FALLBACK,)
-            self.declared = self.declared + (Res(FALLBACK, check="radiance"),)
+            self.writes = self.writes + (FALLBACK, MISS_DIST)
+            self.declared = self.declared + (Res(FALLBACK, check="radiance"),
+                                             Res(MISS_DIST, components=1, check="radiance"))
 
     def execute(self, rc, frame):
         prog = self.program(rc, "screen_space/ssr_resolve.comp", {"SSR_MISS": 1} if self.miss else None)
@@ -170,6 +179,7 @@ class SSRResolvePass(ScreenPass):
             units.tex(prog, "u_miss", res[MISS])
             units.tex(prog, "u_world_spec", res[WORLD_SPEC])
             res[FALLBACK].bind_to_image(2, read=False, write=True)
+            res[MISS_DIST].bind_to_image(3, read=False, write=True)
         units.tex(prog, "u_ray0", res[RAY0])
         units.tex(prog, "u_ray1", res[RAY1])
         units.tex(prog, "u_radiance", res[DIRECT_RADIANCE])
@@ -178,6 +188,34 @@ class SSRResolvePass(ScreenPass):
         rc.resources[RESOLVED].bind_to_image(0, read=False, write=True)
         rc.resources[HIT_DIST].bind_to_image(1, read=False, write=True)
         self.run(rc, prog)
+
+
+class SSRFallbackTemporalPass(TemporalPass):
+    """The shared temporal accumulation (``TemporalPass``) of SSR's own fallback
+    ``ssr.fallback``: the miss trace's one ray per pixel and frame, averaged over frames like
+    the found share (``ssr_temporal``). While ``trace``'s ``miss_trace`` is 0 it keeps no
+    history (every frame a reset: the output is this frame's ``aov.world_spec`` unchanged),
+    and it restarts when ``miss_trace`` is switched."""
+
+    def __init__(self, quality=None, *, trace: SSRTracePass, **kw):
+        super().__init__(quality, **kw)
+        self.trace = trace
+        self._was_on = None
+
+    def execute(self, rc, frame):
+        on = int(self.trace["miss_trace"]) > 0
+        valid = self.history_valid
+        if not on or on != self._was_on:
+            self.history_valid = False
+        self._was_on = on
+        try:
+            super().execute(rc, frame)
+        finally:
+            self.history_valid = valid
+
+    def reset_history(self):
+        super().reset_history()
+        self._was_on = None
 
 
 @register
@@ -195,7 +233,8 @@ class SSR(Technique):
 
 
 def ssr_passes(quality, *, provides=SSR_PROVIDES, fallback: str = WORLD_SPEC,
-               replaces: tuple[str, ...] | None = None, reproject_by_hit: bool = True) -> list:
+               replaces: tuple[str, ...] | None = None, reproject_by_hit: bool = True,
+               fallback_reproject: str = "miss", fallback_clamp: bool = True) -> list:
     """SSR's own passes (Hi-Z, trace, resolve, temporal, composite), to follow DIRECT's.
 
     ``fallback``/``replaces`` go to the composite (see ``CompositePass``): the glossy light
@@ -206,17 +245,32 @@ def ssr_passes(quality, *, provides=SSR_PROVIDES, fallback: str = WORLD_SPEC,
     glossy resource as ``fallback`` (written before ``ssr_composite`` runs); then no miss
     trace runs.
     ``reproject_by_hit``: the temporal pass follows the reflected point (default) instead of
-    the reflecting surface (kept for measuring the difference)."""
+    the reflecting surface (kept for measuring the difference).
+    ``fallback_reproject``: how SSR's own fallback's temporal pass (``ssr_fallback_temporal``)
+    reprojects its history: ``"miss"`` by the virtual image point at the miss rays' mean
+    distance (``ssr.miss_dist``, default), ``"surface"`` by the surface's motion, ``"none"``:
+    no temporal pass (the fallback of one frame; kept for measuring the difference).
+    ``fallback_clamp``: that pass clamps its history to the 3x3 neighbourhood of the current
+    fallback while the camera moves (temporal.comp HISTORY_CLAMP)."""
     p = provides
     # SSR's own fallback (the miss trace) only where the caller keeps the default one
     own = fallback == WORLD_SPEC and replaces is None
     trace = SSRTracePass(quality, provides=p, miss=own)
     resolve = SSRResolvePass(quality, provides=p, max_roughness=trace["max_roughness"], miss=own)
-    if own:
+    if fallback_reproject not in ("miss", "surface", "none"):
+        raise ValueError(f"ssr_passes: fallback_reproject must be 'miss', 'surface' or 'none', got {fallback_reproject!r}")
+    passes = [HiZPass(quality, provides=p), trace, resolve,
+              TemporalPass(quality, name="ssr_temporal", source=RESOLVED, output="ssr.temporal",
+                           background=(0.0, 0.0, 0.0, 1.0), provides=p, max_history=16,
+                           hit_distance=HIT_DIST if reproject_by_hit else None)]
+    if own and fallback_reproject == "none":
         fallback = FALLBACK
-    return [HiZPass(quality, provides=p), trace, resolve,
-            TemporalPass(quality, name="ssr_temporal", source=RESOLVED, output="ssr.temporal",
-                         background=(0.0, 0.0, 0.0, 1.0), provides=p, max_history=16,
-                         hit_distance=HIT_DIST if reproject_by_hit else None),
-            CompositePass(quality, name="ssr_composite", mode="SSR", signal="ssr.temporal", provides=p,
-                          fallback=fallback, replaces=replaces)]
+    elif own:
+        fallback = FALLBACK_TEMPORAL
+        passes.append(SSRFallbackTemporalPass(quality, name="ssr_fallback_temporal", trace=trace, source=FALLBACK,
+                                              output=FALLBACK_TEMPORAL, background=(0.0, 0.0, 0.0, 1.0),
+                                              provides=p, max_history=16, max_history_moving=4,
+                                              clamp=fallback_clamp,
+                                              hit_distance=MISS_DIST if fallback_reproject == "miss" else None))
+    return passes + [CompositePass(quality, name="ssr_composite", mode="SSR", signal="ssr.temporal", provides=p,
+                                   fallback=fallback, replaces=replaces)]
