@@ -38,6 +38,9 @@ llvmpipe; margins cover the Cycles reference's noise at the spp used here):
   (lit only by the floor) 0.061 [0.215] (0.112 when off-screen directions took the mean of
   the on-screen ones instead of a scene trace), mean 0.334 [0.232] against Cycles' 0.444:
   asserted relMSE <= 0.107 (issue 9: at least half of 0.215 gone) and the mean within 30 %.
+* SSR's miss trace under motion (corridor dolly, 48 px, one frame per call, vs a still
+  32-frame render with the trace): fallback accumulated by ssr_fallback_temporal 0.196, of one
+  frame 0.316: asserted <= 0.25 and <= 0.75x (the trace stays off by default: ~0.05 without it).
 
 Images are written to blender_tests/_artifacts/screen_space/ when an assertion fails.
 """
