@@ -16,6 +16,9 @@ leak, stability, lag.
   frame, setup time, equal-error speed-ups against the baselines' curves: Cycles, Cycles +
   OpenImageDenoise, EEVEE) into ``<out>/<scene>/<TECH>/``; the mean of each image over the
   mean of each reference is read back from the EXRs. Table in ``<out>/summary.md``.
+  VXGI (models "full") is measured against "one_bounce" too (``BOTH_REFS``), its quality
+  subsets go to ``<TECH>_q<levels>/``; with ``--lock-chunk`` the lock is given up between
+  renders once held ``HOLD_S`` seconds (VXGI q2/q3 rows take minutes).
 * ``leak``: the thin-wall scene of blender_tests/scenes_raster3d.py (two rooms, a wall of
   zero thickness, the light in the left one, the camera in the right one): the dark room's
   mean minus Cycles' (one bounce), over the lit room's mean seen from inside it; LPV with
