@@ -45,11 +45,17 @@ layout(binding = 0, rgba32f) uniform writeonly image2D o_hist;   // rgb result, 
 layout(binding = 1, rgba32f) uniform writeonly image2D o_aux;    // x = E[Y^2] (same average), yzw = normal
 layout(binding = 2, rgba32f) uniform writeonly image2D o_pos;    // xyz, w = 1 surface / 0 background
 layout(binding = 3, rgba32f) uniform writeonly image2D o_debug;  // r = length / max, g = share clipped
+layout(binding = 4, rgba32f) uniform writeonly image2D o_alt;    // the footprint's other surface: xyz, w = code
+layout(binding = 5, rgba32f) uniform writeonly image2D o_altn;   // its normal
 
 uniform sampler2D u_color;
 uniform sampler2D u_hist;
 uniform sampler2D u_hist_aux;
 uniform sampler2D u_hist_pos;
+uniform sampler2D u_hist_alt;
+uniform sampler2D u_hist_altn;
+uniform int u_footprint;      // 1: a history texel also keeps the other surface its footprint saw
+uniform float u_alt_age;      // frames that other surface is kept without being seen again
 uniform sampler2D u_gb_motion;
 uniform sampler2D u_gb_position;
 uniform sampler2D u_gb_normal;
@@ -68,9 +74,46 @@ uniform float u_hist_normal;  // history tap kept only if its normal . this norm
 // is the history texel (position hp, normal hn) on this pixel's surface (P, N)?
 uniform float u_normal_motion;  // ... where the reprojection moves by more than this (pixels)
 float g_ncos = -2.0;  // the normal threshold in force for this pixel (set in main)
+bool g_moving = false;  // |motion| > u_normal_motion (set in main)
 bool hist_same_surface(bool surf, vec3 P, vec3 N, vec4 hp, vec3 hn) {
     if (!surf) return hp.w < 0.5;
     return hp.w >= 0.5 && plane_pixels(P, N, hp.xyz) <= 2.0 && dot(N, hn) > g_ncos;
+}
+
+// Footprint records (u_footprint = 1): a history texel describes its pixel's footprint, which
+// at a silhouette holds two surfaces; under a jittered camera the pixel's sample alternates
+// between them. Record A is the last sample's surface (taa.pos, normal in taa.aux.yzw), record
+// B (taa.alt, normal taa.altn) the other surface the footprint saw most recently: w = 0 none,
+// +(1 + age) a surface, -(1 + age) the background; age = frames since it was last sampled,
+// dropped past u_alt_age. A texel holds this pixel's surface if either record does.
+// Returns 1 (record A), 2 (record B) or 0.
+// Record B counts only while this pixel's footprint still straddles both surfaces: the texel's
+// record A must be the surface of one of this frame's 3x3 samples (g_win*). Without that, a
+// pixel disoccluded from a silhouette texel (its colour mostly A) accepted it via B: the green
+// wall's history smeared into the revealed background on the Cornell pan (held relMSE 0.03 -> 0.08).
+vec3 g_winP[9];
+vec3 g_winN[9];
+bool g_winS[9];
+bool in_window(vec4 hp, vec3 hn) {
+    if (!g_moving) return true;  // a still texel is this pixel's own footprint
+    for (int k = 0; k < 9; ++k) {
+        if (hp.w < 0.5) {
+            if (!g_winS[k]) return true;
+        } else if (g_winS[k] && plane_pixels(g_winP[k], g_winN[k], hp.xyz) <= 2.0 && dot(g_winN[k], hn) > g_ncos) {
+            return true;
+        }
+    }
+    return false;
+}
+int tap_record(ivec2 t, bool surf, vec3 P, vec3 N, vec4 hp, vec3 hn) {
+    if (hist_same_surface(surf, P, N, hp, hn)) return 1;
+    if (u_footprint == 0) return 0;
+    vec4 al = texelFetch(u_hist_alt, t, 0);
+    vec4 an = texelFetch(u_hist_altn, t, 0);
+    if (!(finite4(al) && finite4(an)) || al.w == 0.0) return 0;
+    if (g_moving && u_footprint < 2) return 0;  // 1: still (sub-pixel) pixels only
+    if (!hist_same_surface(surf, P, N, vec4(al.xyz, al.w > 0.0 ? 1.0 : 0.0), an.xyz)) return 0;
+    return in_window(hp, hn) ? 2 : 0;
 }
 
 // Catmull-Rom weights of the taps at -1, 0, 1, 2 for a fraction f in [0, 1)
@@ -144,6 +187,10 @@ void main() {
             m1 += y;
             m2 += y * y;
             vec4 pq = texelFetch(u_gb_position, q, 0);
+            int kw = (dy + 1) * 3 + dx + 1;
+            g_winP[kw] = pq.xyz;
+            g_winN[kw] = normalize(texelFetch(u_gb_normal, q, 0).xyz + vec3(0.0, 0.0, 1e-12));
+            g_winS[kw] = pq.w >= 0.0;
             bool ok = surf ? (pq.w >= 0.0 && plane_pixels(P, N, pq.xyz) <= 2.0) : pq.w < 0.0;
             if (ok) {
                 same += cq;
@@ -156,11 +203,40 @@ void main() {
 
     vec3 hc = vec3(0.0);
     float hlen = 0.0, hm2 = 0.0, wsum = 0.0;
+    vec4 oalt = vec4(0.0);
+    vec3 oaltn = vec3(0.0);
     if (u_reset == 0) {
         vec2 mv = texelFetch(u_gb_motion, px, 0).xy;
         vec2 prev = vec2(px) + 0.5 - mv - 0.5;
         bool moving = length(mv) > u_normal_motion;
         if (moving) g_ncos = u_hist_normal;
+        g_moving = moving;
+        // this pixel's record B, from the history texel nearest to the reprojected centre: if
+        // this sample is on that texel's record A, its B ages by a frame; otherwise (this sample
+        // is on its B, or on neither: the first sample of a new surface in the footprint) the
+        // texel's A becomes the other surface, seen last frame
+        ivec2 cn = ivec2(floor(prev + 0.5));
+        if (u_footprint >= 1 && all(greaterThanEqual(cn, ivec2(0))) && all(lessThan(cn, size))) {
+            vec4 h = texelFetch(u_hist, cn, 0);
+            vec4 ha = texelFetch(u_hist_aux, cn, 0);
+            vec4 hp = texelFetch(u_hist_pos, cn, 0);
+            if (finite4(h) && finite4(ha) && finite4(hp) && h.a >= 1.0) {
+                int r = tap_record(cn, surf, P, N, hp, ha.yzw);
+                if (r == 1) {
+                    vec4 al = texelFetch(u_hist_alt, cn, 0);
+                    vec4 an = texelFetch(u_hist_altn, cn, 0);
+                    float age = abs(al.w);  // = old age + 1
+                    if (finite4(al) && finite4(an) && al.w != 0.0 && age <= u_alt_age
+                        && in_window(vec4(al.xyz, al.w > 0.0 ? 1.0 : 0.0), an.xyz)) {
+                        oalt = vec4(al.xyz, sign(al.w) * (age + 1.0));
+                        oaltn = an.xyz;
+                    }
+                } else if (r == 2 || in_window(hp, ha.yzw)) {
+                    oalt = vec4(hp.xyz, hp.w >= 0.5 ? 1.0 : -1.0);
+                    oaltn = ha.yzw;
+                }
+            }
+        }
         ivec2 b = ivec2(floor(prev));
         vec2 f = prev - vec2(b);
         for (int j = 0; j < 2; ++j)
@@ -171,7 +247,7 @@ void main() {
                 vec4 ha = texelFetch(u_hist_aux, t, 0);
                 vec4 hp = texelFetch(u_hist_pos, t, 0);
                 if (!(finite4(h) && finite4(ha) && finite4(hp)) || h.a < 1.0) continue;
-                if (!hist_same_surface(surf, P, N, hp, ha.yzw)) continue;
+                if (tap_record(t, surf, P, N, hp, ha.yzw) == 0) continue;
                 float w = (i == 0 ? 1.0 - f.x : f.x) * (j == 0 ? 1.0 - f.y : f.y);
                 hc += w * max(h.rgb, vec3(0.0));
                 hlen += w * h.a;
@@ -195,7 +271,7 @@ void main() {
                     vec4 hp = texelFetch(u_hist_pos, t, 0);
                     vec4 ha = texelFetch(u_hist_aux, t, 0);
                     if (!(finite4(h) && finite4(hp) && finite4(ha)) || h.a < 1.0
-                        || !hist_same_surface(surf, P, N, hp, ha.yzw)) { ok = false; break; }
+                        || tap_record(t, surf, P, N, hp, ha.yzw) == 0) { ok = false; break; }
                     cr += cx[i + 1] * cyw[j + 1] * max(h.rgb, vec3(0.0));
                 }
             if (ok) hc = wsum * max(cr, vec3(0.0));  // hc is divided by wsum below
@@ -213,7 +289,7 @@ void main() {
                     vec4 ha = texelFetch(u_hist_aux, t, 0);
                     vec4 hp = texelFetch(u_hist_pos, t, 0);
                     if (!(finite4(h) && finite4(ha) && finite4(hp)) || h.a < 1.0) continue;
-                    if (!hist_same_surface(surf, P, N, hp, ha.yzw)) continue;
+                    if (tap_record(t, surf, P, N, hp, ha.yzw) == 0) continue;
                     hc += max(h.rgb, vec3(0.0));
                     hlen += h.a;
                     hm2 += max(ha.x, 0.0);
@@ -254,5 +330,7 @@ void main() {
     imageStore(o_hist, px, vec4(outc, len));
     imageStore(o_aux, px, vec4(isnan(om2) || isinf(om2) ? 0.0 : om2, surf ? N : vec3(0.0)));
     imageStore(o_pos, px, surf ? vec4(P, 1.0) : vec4(0.0));
+    imageStore(o_alt, px, oalt);
+    imageStore(o_altn, px, vec4(oaltn, 0.0));
     imageStore(o_debug, px, vec4(vec3(len / max(u_max_history, 1.0), min(clipped, 1.0), 0.0), 1.0));
 }

@@ -196,13 +196,16 @@ class TAAPass(_FilterPass):
     (see shaders/filters/taa.comp)."""
 
     name = "taa"
-    reads = (COLOR, MOTION, POSITION, NORMAL, "taa.history@prev", "taa.aux@prev", "taa.pos@prev")
-    writes = (COLOR, "taa.history", "taa.aux", "taa.pos", "taa.debug")
+    reads = (COLOR, MOTION, POSITION, NORMAL, "taa.history@prev", "taa.aux@prev", "taa.pos@prev",
+             "taa.alt@prev", "taa.altn@prev")
+    writes = (COLOR, "taa.history", "taa.aux", "taa.pos", "taa.debug", "taa.alt", "taa.altn")
     declared = (Res(COLOR, check="radiance"),
                 Res("taa.history", history=True, check="radiance"),
                 Res("taa.aux", history=True, check="finite"),
                 Res("taa.pos", history=True, check="finite"),
-                Res("taa.debug", check="radiance"))
+                Res("taa.debug", check="radiance"),
+                Res("taa.alt", history=True, check="finite"),
+                Res("taa.altn", history=True, check="finite"))
     # A light edit does not restart the history (a restart left one filtered 1-spp frame per
     # frame of a moving sun: flicker 3.5x Cycles'); it caps the history length at
     # light_history (2: the current frame weighs >= 1/3), so the relit region follows within a
@@ -230,8 +233,20 @@ class TAAPass(_FilterPass):
               "same-surface texels of the 3x3 around the reprojected point"),
         Param("light_history", 2, 0, 1024, "a light edit caps the history length at this (0: restarts the "
               "history)"),
+        Param("motion_jitter", 0, 0, 1, "1: frames that keep history are jittered too (the session's running R2 "
+              "index), so a moving camera is anti-aliased; 0: only warm-up and still accumulation"),
+        Param("footprint", 0, 0, 2, "1: a history texel also keeps the other surface its footprint's (jittered) "
+              "samples hit; a sample on either is the texel's surface (silhouettes under jitter), where the "
+              "reprojection moves < normal_motion; 2: also above, if this frame's 3x3 holds the texel's last surface"),
+        Param("footprint_age", 16.0, 0.0, 1024.0, "frames the footprint's other surface is kept without being "
+              "sampled again"),
     )
     quality_ladder = ({"alpha": 0.2}, {"alpha": 0.1}, {"alpha": 0.1, "gamma": 1.0}, {"alpha": 0.05, "gamma": 1.0})
+
+    @property
+    def resolves_jitter(self) -> bool:
+        """The session jitters frames that keep history when a pass of the graph says so."""
+        return bool(int(self["motion_jitter"]))
 
     def execute(self, rc, frame):
         res = rc.resources
@@ -240,7 +255,7 @@ class TAAPass(_FilterPass):
         units = Units(1)
         for uni, name in (("u_color", COLOR), ("u_hist", "taa.history@prev"), ("u_hist_aux", "taa.aux@prev"),
                           ("u_hist_pos", "taa.pos@prev"), ("u_gb_motion", MOTION), ("u_gb_position", POSITION),
-                          ("u_gb_normal", NORMAL)):
+                          ("u_gb_normal", NORMAL), ("u_hist_alt", "taa.alt@prev"), ("u_hist_altn", "taa.altn@prev")):
             units.tex(prog, uni, res[name])
         # light edits: restart (light_history 0) or cap the history length (below)
         light_reset = "lights" in frame.scene_edits and int(self["light_history"]) <= 0
@@ -257,7 +272,9 @@ class TAAPass(_FilterPass):
         set_uniform(prog, "u_normal_motion", float(self["normal_motion"]))
         soft = "lights" in frame.scene_edits and int(self["light_history"]) > 0
         set_uniform(prog, "u_len_cap", float(self["light_history"]) if soft else 1e9)
-        for unit, name in enumerate(("taa.history", "taa.aux", "taa.pos", "taa.debug")):
+        set_uniform(prog, "u_footprint", int(self["footprint"]))
+        set_uniform(prog, "u_alt_age", float(self["footprint_age"]))
+        for unit, name in enumerate(("taa.history", "taa.aux", "taa.pos", "taa.debug", "taa.alt", "taa.altn")):
             res[name].bind_to_image(unit, read=False, write=True)
         self._run(rc, prog)
         rc.ctx.memory_barrier(0x0008 | 0x0020)

@@ -6,7 +6,8 @@ Parameters (pass ``taa``): alpha (least current-frame weight), gamma (box width 
 max_history, input_filter/radius/young (same-surface binomial of the current frame, 5x5 by
 default), history_filter (Catmull-Rom history), history_normal/normal_motion/history_fallback (under
 motion a history tap must face like the pixel; 3x3 same-surface fallback), light_history (a light edit caps the history
-length instead of restarting it). Debug render pass GI_TAA_History (R: history length / max_history, G: share of
+length instead of restarting it), motion_jitter/footprint/footprint_age (jitter frames that keep history; a history
+texel also keeps the other surface its footprint saw; both OFF by default, measured in TAA.md's fifth session). Debug render pass GI_TAA_History (R: history length / max_history, G: share of
 the history moved by the clip).
 Quality ladder: alpha 0.2, 0.1, 0.1 (gamma 1), 0.05 (gamma 1). Warm-up: 8 frames."""
 from __future__ import annotations
