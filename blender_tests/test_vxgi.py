@@ -32,6 +32,10 @@ both sides of the uniform branch: q0 frame 1074 -> ~650 ms, b9467cf 700 ms): cor
 mean 0.972, first frame 1.003; q2 one-bounce 0.926 / 1.008; sunlit 0.078 (DIRECT 0.108), mean 1.146;
 leak 0.0205, undilated 0.0395; audit 0.893 / 0.790. File 38.8 s alone (11:14 UTC; 42.8 s at 11:10 with the first
 compile of the new variants; b9467cf's file 31.5 s, f102339's 54.5 s at 10:48).
+Eighth session (aligned_mips on): cornell relMSE 0.0626, mean 0.976, first frame 1.001; q2 one-bounce 0.967 / 1.055;
+sunlit 0.0853 (DIRECT 0.108), mean 1.151; leak 0.0200, undilated 0.0422; audit 0.893 / 0.780; new cascade-snap test
+0.026 (0.080 with aligned_mips off), 5.0 s. File 49.1 s under the lock at 13:27 UTC with three other engineers' runs
+queued (the same 7 older tests: 44.0 s; 50.1 s in a 12:38 run), not a quiet machine.
 Fifth session: 31.6 s for the file alone (fifth session: 49.7 s with the throw-away pre-render per property set, now set on the graph before the first frame; 29.9 s before the first-frame check).
 """
 from __future__ import annotations
