@@ -18,7 +18,10 @@
   both).
 * ``--stability``: cornell, 60 frames with a moving light and a moving camera (history
   kept, one frame each, as the viewport), Cycles 64 spp per frame: finite, minimum, and the
-  frame-to-frame mean |difference| of ours against Cycles' (the test_raster3d method).
+  frame-to-frame mean |difference| of ours against Cycles' (the test_raster3d method), each
+  step also without its G-buffer-edge pixels and for the indirect AOVs alone. Cycles' frames
+  cached in ``--cache``; ``--lock-chunk N`` (no outer flock) for q2/q3; ``--stability-first F``,
+  ``--stability-set PASS.PARAM=V --label L``, ``--stability-save FILE.npz`` (see stability()).
 * ``--sweep``: scripts/gi_compare.py on every demo scene, DIRECT and VXGI at q0-q3 against
   the reference each models and "full" (relMSE, FLIP, time per frame, setup time,
   equal-error speed-up against Cycles' curve), into ``<out>/<scene>/``; ``<out>/sweep.md``.
