@@ -223,6 +223,36 @@ def test_temporal_converges_for_a_still_camera(cornell):
     assert errs[16] < 0.5 * errs[1] and errs[4] < errs[1]
 
 
+def _ssr_variant(tech_id: str, **ssr_kw):
+    """Register (under ``tech_id``) an SSR whose own passes are ``ssr_passes(quality, **ssr_kw)``
+    after DIRECT's, as SSR.passes builds them: a test's variant of one SSR switch. The caller
+    pops it from ``techniques.REGISTRY`` when done."""
+    from gi_preview.render import techniques
+    from gi_preview.render.passes.gbuffer import GBufferPass
+    from gi_preview.render.passes.shadows import ShadowPass
+    from gi_preview.render.techniques.direct import DirectLightPass
+    from gi_preview.render.techniques.ssr import SSR, ssr_passes
+
+    class Variant(SSR):
+        id = tech_id
+
+        def passes(self, quality):
+            return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality),
+                    *ssr_passes(quality, **ssr_kw)]
+
+    techniques.REGISTRY[tech_id] = Variant
+    return Variant
+
+
+def _dolly(sd, k: int, step=(0.0, 0.08, 0.0)):
+    """A copy of the exported scene with the camera moved ``k`` steps of ``step`` metres."""
+    moved = copy.deepcopy(sd)
+    m = moved.camera.matrix_world.astype(np.float64).copy()
+    m[:3, 3] += np.array(step) * k
+    moved.camera.matrix_world = m.astype(moved.camera.matrix_world.dtype)
+    return moved
+
+
 def _read_resource(key, name, comps):
     from gi_preview.render.gl import get_gl
 
@@ -248,10 +278,7 @@ def test_temporal_rejects_disoccluded_history(cornell):
     for _ in range(8):  # build history at the first camera
         session.render(sd, "HBAO", 1, 1, keep_history=True, session="ss_move")
     old_pos = _read_resource("ss_move", "gbuffer.position", 4)
-    moved = copy.deepcopy(sd)
-    m = moved.camera.matrix_world.astype(np.float64).copy()
-    m[:3, 3] += np.array([0.8, 0.0, -0.3])  # reveals what the boxes hid
-    moved.camera.matrix_world = m.astype(moved.camera.matrix_world.dtype)
+    moved = _dolly(sd, 1, step=(0.8, 0.0, -0.3))  # reveals what the boxes hid
     session.render(moved, "HBAO", 1, 1, keep_history=True, session="ss_move")
     new_pos = _read_resource("ss_move", "gbuffer.position", 4)
     length = _read_resource("ss_move", "hbao.temporal.len", 1)[..., 0]
@@ -385,21 +412,11 @@ def test_ssr_miss_fallback_is_a_composite_argument():
     world reflection while ``miss_trace`` is off; replaced = DIRECT's world reflection) by
     exactly ``(1 - a) (fallback - ssr.fallback)`` per pixel, where ``a`` is the share found."""
     from gi_preview.render import techniques
-    from gi_preview.render.passes.gbuffer import GBufferPass
     from gi_preview.render.passes.screen_space import DIRECT_RADIANCE, WORLD_SPEC
-    from gi_preview.render.passes.shadows import ShadowPass
-    from gi_preview.render.techniques.direct import DirectLightPass
-    from gi_preview.render.techniques.ssr import SSR, ssr_passes
-
-    class SSRWithFallback(SSR):
-        id = "SSR_FALLBACK_TEST"
-
-        def passes(self, quality):
-            return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality),
-                    *ssr_passes(quality, fallback=DIRECT_RADIANCE, replaces=(WORLD_SPEC,))]
+    from gi_preview.render.techniques.ssr import ssr_passes
 
     sc = repro.build("corridor", 40)
-    techniques.REGISTRY[SSRWithFallback.id] = SSRWithFallback
+    SSRWithFallback = _ssr_variant("SSR_FALLBACK_TEST", fallback=DIRECT_RADIANCE, replaces=(WORLD_SPEC,))
     try:
         sd = _export(sc)
         base = session.render(sd, "SSR", 1, 1, session="ss_fb_base").image
@@ -434,30 +451,16 @@ def test_ssr_reflections_reproject_by_the_reflected_point():
     surface's motion (the code before). Measured here (48 px, frames 6-9): 0.068 vs 0.091
     (ratio 0.75; deterministic); asserted <= 0.85x."""
     from gi_preview.render import techniques
-    from gi_preview.render.passes.gbuffer import GBufferPass
-    from gi_preview.render.passes.shadows import ShadowPass
-    from gi_preview.render.techniques.direct import DirectLightPass
-    from gi_preview.render.techniques.ssr import SSR, ssr_passes
-
-    class SSRSurfaceMotion(SSR):
-        id = "SSR_SURFACE_MOTION_TEST"
-
-        def passes(self, quality):
-            return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality),
-                    *ssr_passes(quality, reproject_by_hit=False)]
 
     sc = repro.build("corridor", 48)
-    techniques.REGISTRY[SSRSurfaceMotion.id] = SSRSurfaceMotion
+    SSRSurfaceMotion = _ssr_variant("SSR_SURFACE_MOTION_TEST", reproject_by_hit=False)
     keys = ("ss_mv_truth", "ss_mv_hit", "ss_mv_surf")
     try:
         sd = _export(sc)
         mask = repro.masks("corridor", sd, repro.material_ids(sd))["reflective"]
         errs = {"SSR": [], SSRSurfaceMotion.id: []}
         for k in range(9):
-            moved = copy.deepcopy(sd)
-            m = moved.camera.matrix_world.astype(np.float64).copy()
-            m[:3, 3] += np.array([0.0, 0.08, 0.0]) * k
-            moved.camera.matrix_world = m.astype(moved.camera.matrix_world.dtype)
+            moved = _dolly(sd, k)
             imgs = {t: session.render(moved, t, 1, 1, keep_history=True, session=key).image
                     for t, key in zip(errs, keys[1:])}
             if k >= 5:
@@ -504,20 +507,10 @@ def test_ssr_miss_fallback_accumulates_over_time():
     own still render: why the trace stays off, docs/techniques/SSR.md sixth session. A NaN
     history is dropped within one frame."""
     from gi_preview.render import techniques
-    from gi_preview.render.passes.gbuffer import GBufferPass
-    from gi_preview.render.passes.shadows import ShadowPass
-    from gi_preview.render.techniques.direct import DirectLightPass
-    from gi_preview.render.techniques.ssr import FALLBACK_TEMPORAL, SSR, ssr_passes
-
-    class SSROneFrameFallback(SSR):
-        id = "SSR_ONE_FRAME_FALLBACK_TEST"
-
-        def passes(self, quality):
-            return [GBufferPass(quality), ShadowPass(quality), DirectLightPass(quality),
-                    *ssr_passes(quality, fallback_reproject="none")]
+    from gi_preview.render.techniques.ssr import FALLBACK_TEMPORAL
 
     sc = repro.build("corridor", 48)
-    techniques.REGISTRY[SSROneFrameFallback.id] = SSROneFrameFallback
+    SSROneFrameFallback = _ssr_variant("SSR_ONE_FRAME_FALLBACK_TEST", fallback_reproject="none")
     variants = {"ss_mf_temporal": "SSR", "ss_mf_one": SSROneFrameFallback.id}
     keys = ("ss_mf_truth", *variants)
     try:
@@ -527,10 +520,7 @@ def test_ssr_miss_fallback_accumulates_over_time():
             session.set_pass_properties(key, {"ssr_trace": {"miss_trace": 1}}, technique=tech, quality=1)
         errs = {k: [] for k in variants}
         for k in range(9):
-            moved = copy.deepcopy(sd)
-            m = moved.camera.matrix_world.astype(np.float64).copy()
-            m[:3, 3] += np.array([0.0, 0.08, 0.0]) * k
-            moved.camera.matrix_world = m.astype(moved.camera.matrix_world.dtype)
+            moved = _dolly(sd, k)
             imgs = {key: session.render(moved, t, 1, 1, keep_history=True, session=key).image
                     for key, t in variants.items()}
             if k in (6, 8):
