@@ -253,6 +253,25 @@ def _dolly(sd, k: int, step=(0.0, 0.08, 0.0)):
     return moved
 
 
+def _dolly_errors(sd, runs: dict, mask, *, truth_key: str, truth_samples: int, at, steps: int = 9):
+    """The camera dollies (``_dolly``, ``steps`` frames); each run ({session key: technique})
+    renders viewport-style (one frame per call, history kept). At the frames ``at``, each
+    run's image is checked finite and compared, masked, with a still SSR render of
+    ``truth_samples`` frames (session ``truth_key``, configured by the caller). Returns
+    ({session key: mean masked relMSE}, the last frame's scene)."""
+    errs = {key: [] for key in runs}
+    for k in range(steps):
+        moved = _dolly(sd, k)
+        imgs = {key: session.render(moved, t, 1, 1, keep_history=True, session=key).image
+                for key, t in runs.items()}
+        if k in at:
+            truth = session.render(moved, "SSR", 1, truth_samples, session=truth_key).image
+            for key, img in imgs.items():
+                assert np.isfinite(img).all()
+                errs[key].append(metrics.relmse(img, truth, mask=mask))
+    return {key: float(np.mean(v)) for key, v in errs.items()}, moved
+
+
 def _read_resource(key, name, comps):
     from gi_preview.render.gl import get_gl
 
@@ -458,17 +477,9 @@ def test_ssr_reflections_reproject_by_the_reflected_point():
     try:
         sd = _export(sc)
         mask = repro.masks("corridor", sd, repro.material_ids(sd))["reflective"]
-        errs = {"SSR": [], SSRSurfaceMotion.id: []}
-        for k in range(9):
-            moved = _dolly(sd, k)
-            imgs = {t: session.render(moved, t, 1, 1, keep_history=True, session=key).image
-                    for t, key in zip(errs, keys[1:])}
-            if k >= 5:
-                truth = session.render(moved, "SSR", 1, 8, session=keys[0]).image
-                for t, img in imgs.items():
-                    assert np.isfinite(img).all()
-                    errs[t].append(metrics.relmse(img, truth, mask=mask))
-        e_hit, e_surf = (float(np.mean(v)) for v in errs.values())
+        errs, _ = _dolly_errors(sd, {keys[1]: "SSR", keys[2]: SSRSurfaceMotion.id}, mask,
+                                truth_key=keys[0], truth_samples=8, at=range(5, 9))
+        e_hit, e_surf = errs[keys[1]], errs[keys[2]]
         print(f"reflection lag under motion (masked relMSE vs still render): by reflected point {e_hit:.4f}, "
               f"by surface {e_surf:.4f}")
         assert e_hit <= 0.85 * e_surf
@@ -518,17 +529,8 @@ def test_ssr_miss_fallback_accumulates_over_time():
         mask = repro.masks("corridor", sd, repro.material_ids(sd))["reflective"]
         for key, tech in (("ss_mf_truth", "SSR"), *variants.items()):
             session.set_pass_properties(key, {"ssr_trace": {"miss_trace": 1}}, technique=tech, quality=1)
-        errs = {k: [] for k in variants}
-        for k in range(9):
-            moved = _dolly(sd, k)
-            imgs = {key: session.render(moved, t, 1, 1, keep_history=True, session=key).image
-                    for key, t in variants.items()}
-            if k in (6, 8):
-                truth = session.render(moved, "SSR", 1, 32, session="ss_mf_truth").image
-                for key, img in imgs.items():
-                    assert np.isfinite(img).all()
-                    errs[key].append(metrics.relmse(img, truth, mask=mask))
-        e_t, e_one = (float(np.mean(v)) for v in errs.values())
+        errs, moved = _dolly_errors(sd, variants, mask, truth_key="ss_mf_truth", truth_samples=32, at=(6, 8))
+        e_t, e_one = errs["ss_mf_temporal"], errs["ss_mf_one"]
         print(f"miss fallback under motion (masked relMSE vs still 32 frames): temporal {e_t:.4f}, "
               f"one frame {e_one:.4f}")
         assert e_t <= 0.25 and e_t <= 0.75 * e_one
