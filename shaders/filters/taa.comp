@@ -70,6 +70,9 @@ uniform int u_history_filter;    // 0: bilinear history, 1: Catmull-Rom where al
 uniform float u_len_cap;  // history length kept through this frame (a light edit: light_history)
 uniform int u_hist_fallback;  // 1: 3x3 same-surface search where no bilinear tap is usable
 uniform float u_hist_normal;  // history tap kept only if its normal . this normal > this (-1: off)
+uniform int u_recon;          // 1: this frame's value = Gaussian mix of the 3x3 samples' same-surface means
+uniform float u_recon_sigma;  // ... with sigma (pixels) of the Gaussian over the samples' distances
+uniform vec2 u_jitter;        // the frame's jitter (pixels): pixel q's G-buffer sample lies at q + 0.5 - u_jitter
 
 // is the history texel (position hp, normal hn) on this pixel's surface (P, N)?
 uniform float u_normal_motion;  // ... where the reprojection moves by more than this (pixels)
@@ -153,6 +156,47 @@ vec3 filtered_input(ivec2 px, ivec2 size, bool surf, vec3 P, vec3 N, int r, out 
     bmean = b1 / max(nb, 1.0);
     bsig = sqrt(max(b2 / max(nb, 1.0) - bmean * bmean, vec3(0.0)));
     return ws > 0.0 ? sum / ws : sanitize(texelFetch(u_color, px, 0).rgb);
+}
+
+// Current-frame reconstruction (u_recon = 1; Karis 2014's filtered current sample): the sample
+// of pixel q lies at q + 0.5 - u_jitter (the G-buffer's jittered position), i.e. at
+// d = (q - p) - u_jitter from this pixel's centre. This frame's value is the mix over the 3x3 of
+// each sample's same-surface binomial (its denoised value) weighted by exp(-|d|^2 / 2 sigma^2)
+// across surfaces, so an edge pixel's value is already a mix of the surfaces within ~1 px.
+vec3 surface_mean(ivec2 c, ivec2 size, int r) {
+    vec4 pc = texelFetch(u_gb_position, c, 0);
+    bool surf = pc.w >= 0.0;
+    vec3 N = normalize(texelFetch(u_gb_normal, c, 0).xyz + vec3(0.0, 0.0, 1e-12));
+    vec3 sum = vec3(0.0);
+    float ws = 0.0;
+    for (int dy = -r; dy <= r; ++dy)
+        for (int dx = -r; dx <= r; ++dx) {
+            ivec2 q = c + ivec2(dx, dy);
+            if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
+            vec4 pq = texelFetch(u_gb_position, q, 0);
+            bool ok = surf ? (pq.w >= 0.0 && plane_pixels(pc.xyz, N, pq.xyz) <= 2.0
+                              && dot(N, texelFetch(u_gb_normal, q, 0).xyz) > 0.9) : pq.w < 0.0;
+            if (!ok) continue;
+            float g = r == 1 ? BINOM1[dx + 1] * BINOM1[dy + 1] : BINOM2[dx + 2] * BINOM2[dy + 2];
+            sum += g * sanitize(texelFetch(u_color, q, 0).rgb);
+            ws += g;
+        }
+    return ws > 0.0 ? sum / ws : sanitize(texelFetch(u_color, c, 0).rgb);
+}
+vec3 recon_input(ivec2 px, ivec2 size, int r) {
+    vec3 sum = vec3(0.0);
+    float ws = 0.0;
+    float k = 0.5 / max(u_recon_sigma * u_recon_sigma, 1e-4);
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+            ivec2 q = px + ivec2(dx, dy);
+            if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
+            vec2 d = vec2(dx, dy) - u_jitter;
+            float g = exp(-k * dot(d, d));
+            sum += g * surface_mean(q, size, r);
+            ws += g;
+        }
+    return sum / max(ws, 1e-12);
 }
 
 vec3 rgb2ycocg(vec3 c) {
@@ -309,6 +353,7 @@ void main() {
         vec3 bm = m1, bs = sig;
         vec3 curf = cur;
         if (u_input_filter == 1) curf = filtered_input(px, size, surf, P, N, len <= u_young ? 2 : u_radius, bm, bs);
+        if (u_recon == 1) curf = recon_input(px, size, len <= u_young ? 2 : u_radius);
         vec3 hy = rgb2ycocg(hc);
         float sig_t = sqrt(max(hm2 - hy.x * hy.x, 0.0));
         vec3 e = u_gamma * max(bs, vec3(sig_t));
@@ -322,6 +367,7 @@ void main() {
         // (3x3 mean without the input filter)
         vec3 bm, bs;
         outc = u_input_filter == 1 ? filtered_input(px, size, surf, P, N, 2, bm, bs) : (ns > 0.0 ? same / ns : cur);
+        if (u_recon == 1) outc = recon_input(px, size, 2);
         len = ns >= 4.0 ? 2.0 : 1.0;
         om2 = ycur * ycur;
         clipped = 1.0;
@@ -330,7 +376,10 @@ void main() {
     imageStore(o_hist, px, vec4(outc, len));
     imageStore(o_aux, px, vec4(isnan(om2) || isinf(om2) ? 0.0 : om2, surf ? N : vec3(0.0)));
     imageStore(o_pos, px, surf ? vec4(P, 1.0) : vec4(0.0));
-    imageStore(o_alt, px, oalt);
-    imageStore(o_altn, px, vec4(oaltn, 0.0));
+    // taa.alt / taa.altn are 1x1 placeholders while footprint is 0: only their one texel is cleared
+    if (u_footprint > 0 || (px.x == 0 && px.y == 0)) {
+        imageStore(o_alt, px, oalt);
+        imageStore(o_altn, px, vec4(oaltn, 0.0));
+    }
     imageStore(o_debug, px, vec4(vec3(len / max(u_max_history, 1.0), min(clipped, 1.0), 0.0), 1.0));
 }

@@ -240,8 +240,22 @@ class TAAPass(_FilterPass):
               "reprojection moves < normal_motion; 2: also above, if this frame's 3x3 holds the texel's last surface"),
         Param("footprint_age", 16.0, 0.0, 1024.0, "frames the footprint's other surface is kept without being "
               "sampled again"),
+        Param("recon", 0, 0, 1, "1: this frame's value is a Gaussian mix (recon_sigma) of the 3x3 samples' "
+              "same-surface means, weighted by each sample's jittered distance from the pixel centre (Karis' "
+              "reconstruction filter; mixes surfaces within ~1 px); 0: the pixel's same-surface binomial"),
+        Param("recon_sigma", 0.47, 0.05, 2.0, "recon: sigma in pixels (0.47 = Karis' exp(-2.29 d^2) fit of "
+              "Blackman-Harris)"),
     )
     quality_ladder = ({"alpha": 0.2}, {"alpha": 0.1}, {"alpha": 0.1, "gamma": 1.0}, {"alpha": 0.05, "gamma": 1.0})
+
+    def resources(self) -> tuple:
+        """The footprint records (taa.alt, taa.altn) are 1x1 placeholders while ``footprint`` is 0:
+        the shader neither reads nor writes them then (not allocated at frame size, no per-frame
+        stores)."""
+        if int(self["footprint"]) > 0:
+            return tuple(self.declared)
+        return tuple(Res(d.name, history=True, check="finite", size=(1, 1)) if d.name in ("taa.alt", "taa.altn")
+                     else d for d in self.declared)
 
     @property
     def resolves_jitter(self) -> bool:
@@ -274,6 +288,9 @@ class TAAPass(_FilterPass):
         set_uniform(prog, "u_len_cap", float(self["light_history"]) if soft else 1e9)
         set_uniform(prog, "u_footprint", int(self["footprint"]))
         set_uniform(prog, "u_alt_age", float(self["footprint_age"]))
+        set_uniform(prog, "u_recon", int(self["recon"]))
+        set_uniform(prog, "u_recon_sigma", float(self["recon_sigma"]))
+        set_uniform(prog, "u_jitter", tuple(float(x) for x in frame.jitter))
         for unit, name in enumerate(("taa.history", "taa.aux", "taa.pos", "taa.debug", "taa.alt", "taa.altn")):
             res[name].bind_to_image(unit, read=False, write=True)
         self._run(rc, prog)
