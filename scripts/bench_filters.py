@@ -90,6 +90,7 @@ def main():
                               "trail_ratio_per_draw": v["trail"].get("ratio_at_8_per_draw"),
                               "trail_ratio_after_stop": v["trail"].get("ratio_after_stop"),
                               "stability_per_draw": v.get("stability_per_draw"),
+                              "relmse_hold_per_draw": v.get("relmse_hold_per_draw"),
                               "mean_ratio_last": v["mean_ratio"][-1],
                               "mean_ratio_hold": sum(v["mean_ratio"][anim["stop_frame"] + 1:])
                               / max(1, len(v["mean_ratio"][anim["stop_frame"] + 1:]))}
@@ -114,11 +115,15 @@ def main():
                   f"{speed})", "",
                   "| technique | relMSE moving | relMSE held | stability | ratio | trail +8 / still | recovered after | brightness held | ms/frame |",
                   "|---|---|---|---|---|---|---|---|---|"]
+        def spread4(vals):
+            vals = [x for x in (vals or []) if x is not None]
+            return f" ({min(vals):.4f}-{max(vals):.4f})" if len(vals) > 1 else ""
+
         def spread(vals):
             vals = [x for x in (vals or []) if x is not None]
             return f" ({min(vals):.2f}-{max(vals):.2f})" if len(vals) > 1 else ""
         for t, v in c["techniques"].items():
-            lines.append(f"| {t} | {fmt(v['relmse_moving'], '{:.4f}')} | {fmt(v['relmse_hold'], '{:.4f}')} | "
+            lines.append(f"| {t} | {fmt(v['relmse_moving'], '{:.4f}')} | {fmt(v['relmse_hold'], '{:.4f}')}{spread4(v.get('relmse_hold_per_draw'))} | "
                          f"{fmt(v['stability'], '{:.4f}')} | {fmt(v['stability_ratio'], '{:.2f}x')}"
                          f"{spread(v.get('stability_per_draw'))} | "
                          f"{fmt(v['trail_ratio_at_8'], '{:.2f}x')}{spread(v.get('trail_ratio_per_draw'))} | "

@@ -306,6 +306,7 @@ def analyse(spec: AnimationSpec, ours: list, refs: list, masks: list, trail_mask
         vals = [r[k] for r in runs]
         out[k] = None if any(v is None for v in vals) else float(np.mean(vals))
     out["stability_per_draw"] = [r["stability_ratio"] for r in runs]
+    out["relmse_hold_per_draw"] = [r["relmse_hold"] for r in runs]
     out["stability_ratio"] = out["stability"] / out["cycles_stability"] if out["cycles_stability"] > 0 else None
     out["nonfinite_pixels"] = int(sum(r["nonfinite_pixels"] for r in runs))
     out["max_value"] = float(max(r["max_value"] for r in runs))
