@@ -258,3 +258,44 @@ def test_taa_pan_ghost_trail_48px():
     assert tr["same_seeds"] and tr["mask_pixels"] >= 30
     assert a["stability_ratio"] <= 2.0
     assert tr["ratio_at_8"] <= 1.3, f"ghost trail: {tr['ratio_at_8']:.2f}x the still level 8 frames after the stop"
+
+
+def test_taa_footprint_records_allocated_only_when_used():
+    """TAA's footprint records (taa.alt / taa.altn, C5) are not adopted (TAA.md, sixth session):
+    while ``footprint`` is 0 they are 1x1 placeholders the shader never reads or writes; switching
+    the parameter on allocates them at the frame size, and off again drops them."""
+    pytest.importorskip("bpy")
+    pytest.importorskip("moderngl")
+    import bpy
+    from gi_preview.blender import demo_scenes as D
+    from gi_preview.blender.export import export_scene
+    from gi_preview.blender.reference import evaluated_depsgraph
+    from gi_preview.render import session
+    from gi_preview.render.gl import get_gl
+
+    sc = D.build_demo("cornell", resolution=16)
+    sess = "taa_footprint_alloc"
+    names = ("taa.alt", "taa.alt@prev", "taa.altn", "taa.altn@prev", "taa.history")
+
+    def sizes():
+        return get_gl().call(lambda: {n: tuple(session._sessions[sess].rc.resources[n].size) for n in names})
+
+    def render():
+        return session.render(sd, "TAA", 1, 1, keep_history=True, warmup=False, session=sess)
+
+    try:
+        sd = export_scene(evaluated_depsgraph(sc))
+        r = render()
+        assert np.isfinite(r.image).all()
+        s = sizes()
+        assert s["taa.history"] == (16, 16)
+        assert all(s[n] == (1, 1) for n in names[:4]), s
+        session.set_pass_properties(sess, {"taa": {"footprint": 1}}, technique="TAA", quality=1)
+        assert np.isfinite(render().image).all()
+        assert all(v == (16, 16) for v in sizes().values()), sizes()
+        session.set_pass_properties(sess, {"taa": {"footprint": 0}}, technique="TAA", quality=1)
+        render()
+        assert all(sizes()[n] == (1, 1) for n in names[:4])
+    finally:
+        session.release_session(sess).result(timeout=60)
+        bpy.data.scenes.remove(sc)

@@ -70,6 +70,7 @@ uniform int u_history_filter;    // 0: bilinear history, 1: Catmull-Rom where al
 uniform float u_len_cap;  // history length kept through this frame (a light edit: light_history)
 uniform int u_hist_fallback;  // 1: 3x3 same-surface search where no bilinear tap is usable
 uniform float u_hist_normal;  // history tap kept only if its normal . this normal > this (-1: off)
+uniform int u_edge_own;       // at geometric-edge pixels blend 1: the pixel's own sample, 2: the 3x3 same-surface binomial
 uniform int u_recon;          // 1: this frame's value = Gaussian mix of the 3x3 samples' same-surface means
 uniform float u_recon_sigma;  // ... with sigma (pixels) of the Gaussian over the samples' distances
 uniform vec2 u_jitter;        // the frame's jitter (pixels): pixel q's G-buffer sample lies at q + 0.5 - u_jitter
@@ -223,6 +224,7 @@ void main() {
     vec3 N = normalize(texelFetch(u_gb_normal, px, 0).xyz + vec3(0.0, 0.0, 1e-12));
     vec3 m1 = vec3(0.0), m2 = vec3(0.0), same = vec3(0.0);
     float ns = 0.0;
+    bool edge = false;  // (u_edge_own) a 3x3 sample lies on another surface
     for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
             ivec2 q = clamp(px + ivec2(dx, dy), ivec2(0), size - 1);
@@ -231,10 +233,14 @@ void main() {
             m1 += y;
             m2 += y * y;
             vec4 pq = texelFetch(u_gb_position, q, 0);
-            int kw = (dy + 1) * 3 + dx + 1;
-            g_winP[kw] = pq.xyz;
-            g_winN[kw] = normalize(texelFetch(u_gb_normal, q, 0).xyz + vec3(0.0, 0.0, 1e-12));
-            g_winS[kw] = pq.w >= 0.0;
+            if (u_footprint > 0 || u_edge_own > 0) {  // the 3x3's surfaces (footprint 2's window, edge test)
+                int kw = (dy + 1) * 3 + dx + 1;
+                g_winP[kw] = pq.xyz;
+                g_winN[kw] = normalize(texelFetch(u_gb_normal, q, 0).xyz + vec3(0.0, 0.0, 1e-12));
+                g_winS[kw] = pq.w >= 0.0;
+                if (!(surf ? (g_winS[kw] && plane_pixels(P, N, pq.xyz) <= 2.0 && dot(N, g_winN[kw]) > 0.9)
+                           : !g_winS[kw])) edge = true;
+            }
             bool ok = surf ? (pq.w >= 0.0 && plane_pixels(P, N, pq.xyz) <= 2.0) : pq.w < 0.0;
             if (ok) {
                 same += cq;
@@ -354,6 +360,12 @@ void main() {
         vec3 curf = cur;
         if (u_input_filter == 1) curf = filtered_input(px, size, surf, P, N, len <= u_young ? 2 : u_radius, bm, bs);
         if (u_recon == 1) curf = recon_input(px, size, len <= u_young ? 2 : u_radius);
+        // u_edge_own: at a geometric edge this pixel's own sample is the only one whose (random,
+        // box-distributed) position lies in its footprint: the same-surface filter would dilute the
+        // other surface's coverage with the neighbours' pure samples
+        if (u_edge_own == 1 && edge) curf = cur;
+        vec3 bm3, bs3;  // (2: the 3x3 same-surface binomial there; the clip box stays the 5x5's)
+        if (u_edge_own == 2 && edge) curf = filtered_input(px, size, surf, P, N, 1, bm3, bs3);
         vec3 hy = rgb2ycocg(hc);
         float sig_t = sqrt(max(hm2 - hy.x * hy.x, 0.0));
         vec3 e = u_gamma * max(bs, vec3(sig_t));

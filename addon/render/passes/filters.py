@@ -29,6 +29,8 @@ and ``scene.gi_preview.use_taa``.
 """
 from __future__ import annotations
 
+from dataclasses import replace
+
 from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, MOTION, NORMAL, POSITION, GBufferPass
@@ -243,6 +245,9 @@ class TAAPass(_FilterPass):
         Param("recon", 0, 0, 1, "1: this frame's value is a Gaussian mix (recon_sigma) of the 3x3 samples' "
               "same-surface means, weighted by each sample's jittered distance from the pixel centre (Karis' "
               "reconstruction filter; mixes surfaces within ~1 px); 0: the pixel's same-surface binomial"),
+        Param("edge_own", 0, 0, 2, "at geometric-edge pixels (a 3x3 sample on another surface) blend 1: the pixel's "
+              "own sample (its random in-pixel position carries the coverage), 2: the 3x3 same-surface binomial, "
+              "instead of the input filter"),
         Param("recon_sigma", 0.47, 0.05, 2.0, "recon: sigma in pixels (0.47 = Karis' exp(-2.29 d^2) fit of "
               "Blackman-Harris)"),
     )
@@ -254,8 +259,7 @@ class TAAPass(_FilterPass):
         stores)."""
         if int(self["footprint"]) > 0:
             return tuple(self.declared)
-        return tuple(Res(d.name, history=True, check="finite", size=(1, 1)) if d.name in ("taa.alt", "taa.altn")
-                     else d for d in self.declared)
+        return tuple(replace(d, size=(1, 1)) if d.name in ("taa.alt", "taa.altn") else d for d in self.declared)
 
     @property
     def resolves_jitter(self) -> bool:
@@ -289,6 +293,7 @@ class TAAPass(_FilterPass):
         set_uniform(prog, "u_footprint", int(self["footprint"]))
         set_uniform(prog, "u_alt_age", float(self["footprint_age"]))
         set_uniform(prog, "u_recon", int(self["recon"]))
+        set_uniform(prog, "u_edge_own", int(self["edge_own"]))
         set_uniform(prog, "u_recon_sigma", float(self["recon_sigma"]))
         set_uniform(prog, "u_jitter", tuple(float(x) for x in frame.jitter))
         for unit, name in enumerate(("taa.history", "taa.aux", "taa.pos", "taa.debug", "taa.alt", "taa.altn")):
