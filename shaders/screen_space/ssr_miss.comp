@@ -39,16 +39,52 @@ layout(local_size_x = 8, local_size_y = 8) in;
 layout(binding = 0, rgba32f) uniform readonly image2D u_ray0;
 layout(binding = 1, rgba32f) uniform readonly image2D u_ray1;
 layout(binding = 2, rgba16f) uniform writeonly image2D o_miss;
+uniform int u_shade_samples;   // light/BSDF/world samples per hit (param miss_samples / _moving)
 
 #ifndef SSR_MISS_OFF
 // the distance stored for a ray that escapes (its light comes from infinitely far: a virtual
 // image this far behind the mirror barely moves with the camera, like the sky)
 #define SSR_MISS_ESCAPE_DIST 1000.0
-vec3 miss_radiance(vec3 O, vec3 L, inout Rng rng, out float t) {
+// shade_direct_at (lib/scene_rt.glsl), the same light sample with the same random numbers
+// and the same result, also returning the share of it the hit's glossy lobe reflects and the
+// distance to the light point: a light's highlight seen through a glossy hit is an image of
+// the light, which moves like a point that far beyond the hit (see gdist below)
+vec3 shade_direct_split(Surface bs, vec3 p, vec3 N, vec3 Ng, vec3 V, inout Rng rng, bool mis,
+                        out vec3 glossy, out float ldist) {
+    glossy = vec3(0.0);
+    ldist = 0.0;
+    if (u_light_count <= 0) return vec3(0.0);
+    vec4 ul = rng_next4(rng);
+    float sel;
+    int li = select_light(ul.x, sel);
+    Light Lt = lights[li];
+    LightSample ls = sample_light(Lt, p, ul.yz, ul.w);
+    if (ls.pdf <= 0.0 || sel <= 0.0 || dot(ls.dir, Ng) <= 0.0) return vec3(0.0);
+    BsdfEval fe = eval_principled(bs, N, V, ls.dir);
+    vec3 f = fe.diffuse + fe.glossy;
+    if (max3(f) <= 0.0 || max3(ls.Li) <= 0.0) return vec3(0.0);
+    if (Lt.axis_w.w > 0.5 && scene_occluded(p, ls.dir, 0.0, ls.dist * (1.0 - 1e-4))) return vec3(0.0);
+    float lpdf = sel * ls.pdf;
+    float w = (ls.delta || !mis) ? 1.0 : power_heuristic(lpdf, pdf_principled(bs, N, V, ls.dir));
+    glossy = fe.glossy * ls.Li * (w / lpdf);
+    ldist = ls.dist;
+    return f * ls.Li * (w / lpdf);
+}
+
+// t: the distance to the hit (SSR_MISS_ESCAPE_DIST: escaped). gdist: the distance the
+// reflected light's image lies behind the reflecting pixel, as one parallax: a hit's light is
+// where the hit is (t), except what its glossy lobe reflects from a light, whose image lies at
+// the unfolded path length t + distance to the light (a highlight moves with the viewpoint
+// over the hit's surface; on issue 9's corridor the gold wall's highlights seen in the mirror
+// floor lagged behind when reprojected by the wall point). The parallaxes 1 / (dcam + d) are
+// averaged weighted by luminance. SSR_MISS_HIT_PARALLAX: gdist = t (the sixth session's).
+vec3 miss_radiance(vec3 O, vec3 L, float dcam, inout Rng rng, out float t, out float gdist) {
     SurfaceHit s;
     t = SSR_MISS_ESCAPE_DIST;
+    gdist = t;
     if (!scene_trace(O, L, 0.0, T_INF, s)) return u_rt_world;
     t = clamp(s.t, 1e-3, SSR_MISS_ESCAPE_DIST);
+    gdist = t;
     vec3 V = -L, Nh, Ngh, ph;
     surface_frame(s, V, Nh, Ngh, ph);
     Surface bs = s.bsdf;
@@ -65,31 +101,72 @@ vec3 miss_radiance(vec3 O, vec3 L, inout Rng rng, out float t) {
 #else
     glossy = false;
 #endif
-    vec3 c = shade_direct_at(bs, ph, Nh, Ngh, V, rng, glossy);
-    if (glossy) {
-        vec4 ub = rng_next4(rng);
-        float bpdf;
-        vec3 Lb = sample_principled(bs, Nh, V, ub.xyz, bpdf);
-        if (bpdf > 0.0 && dot(Lb, Ngh) > 0.0) {
-            BsdfEval fe = eval_principled(bs, Nh, V, Lb);
-            vec3 f = fe.diffuse + fe.glossy;
-            if (max3(f) > 0.0) {
-                SurfaceHit sb;
-                bool hb = scene_trace(ph, Lb, 0.0, T_INF, sb);
-                // lights and emitters this ray meets (the world's light is the visibility ray's below)
-                vec3 Le = bsdf_hit_light_mis(ph, Lb, 0.0, hb, sb, bpdf, true) - (hb ? vec3(0.0) : u_rt_world);
-                c += f * max(Le, vec3(0.0)) / bpdf;
+    // u_shade_samples light/BSDF/world samples at the hit (more while the camera moves and
+    // the fallback's history is short: the trace is shared, the shading noise divides)
+    vec3 c = vec3(0.0);
+    float lum_g = 0.0, tl = 0.0;   // glossy light's luminance, its luminance-weighted light distance
+    int ns = max(u_shade_samples, 1);
+    for (int k = 0; k < ns; ++k) {
+        vec3 cg;
+        float ldist;
+        c += shade_direct_split(bs, ph, Nh, Ngh, V, rng, glossy, cg, ldist);
+        float lg = luminance(cg);
+        if (lg > 0.0) {
+            tl = (tl * lum_g + min(ldist, SSR_MISS_ESCAPE_DIST) * lg) / (lum_g + lg);
+            lum_g += lg;
+        }
+        if (glossy) {
+            vec4 ub = rng_next4(rng);
+            float bpdf;
+            vec3 Lb = sample_principled(bs, Nh, V, ub.xyz, bpdf);
+            if (bpdf > 0.0 && dot(Lb, Ngh) > 0.0) {
+                BsdfEval fe = eval_principled(bs, Nh, V, Lb);
+                vec3 f = fe.diffuse + fe.glossy;
+                if (max3(f) > 0.0) {
+                    SurfaceHit sb;
+                    bool hb = scene_trace(ph, Lb, 0.0, T_INF, sb);
+                    // lights and emitters this ray meets (the world's light is the visibility ray's below)
+                    vec3 Le = bsdf_hit_light_mis(ph, Lb, 0.0, hb, sb, bpdf, true) - (hb ? vec3(0.0) : u_rt_world);
+                    c += f * max(Le, vec3(0.0)) / bpdf;
+                    // the light this ray met: its distance to the light's centre (emitting
+                    // surfaces: the hit)
+                    float lb = luminance(fe.glossy * max(Le, vec3(0.0)) / bpdf);
+                    if (lb > 0.0) {
+                        float tb = hb ? sb.t : 0.0;
+                        for (int i = 0; i < u_light_count; ++i) {
+                            vec3 le;
+                            float lp;
+                            if (light_ray_hit(lights[i], ph, Lb, 0.0, hb ? sb.t : T_INF, le, lp)) {
+                                tb = int(lights[i].pos_type.w + 0.5) == LIGHT_SUN ? SSR_MISS_ESCAPE_DIST
+                                                                                   : length(lights[i].pos_type.xyz - ph);
+                                break;
+                            }
+                        }
+                        tl = (tl * lum_g + tb * lb) / (lum_g + lb);
+                        lum_g += lb;
+                    }
+                }
+            }
+        }
+        if (max3(u_rt_world) > 0.0) {
+            vec4 u = rng_next4(rng);
+            vec3 d = to_world(sample_cosine_hemisphere(u.xy), Nh);
+            if (dot(d, Ngh) > 0.0 && !scene_occluded(ph, d, 0.0, T_INF)) {
+                float NoV = max(dot(Nh, V), 1e-4);
+                c += u_rt_world * (diffuse_albedo(bs, NoV) + specular_albedo(bs, NoV));
             }
         }
     }
-    if (max3(u_rt_world) > 0.0) {
-        vec4 u = rng_next4(rng);
-        vec3 d = to_world(sample_cosine_hemisphere(u.xy), Nh);
-        if (dot(d, Ngh) > 0.0 && !scene_occluded(ph, d, 0.0, T_INF)) {
-            float NoV = max(dot(Nh, V), 1e-4);
-            c += u_rt_world * (diffuse_albedo(bs, NoV) + specular_albedo(bs, NoV));
-        }
+    c /= float(ns);
+    lum_g /= float(ns);
+#ifndef SSR_MISS_HIT_PARALLAX
+    float lum = luminance(c);
+    if (lum_g > 0.0 && lum > 0.0) {
+        float fg = clamp(lum_g / lum, 0.0, 1.0);
+        float par = (1.0 - fg) / (dcam + t) + fg / (dcam + min(t + tl, SSR_MISS_ESCAPE_DIST));
+        gdist = clamp(1.0 / par - dcam, t, SSR_MISS_ESCAPE_DIST);
     }
+#endif
     return c;
 }
 #endif
@@ -109,8 +186,8 @@ void main() {
     // from the G-buffer point moved off the surface (scale-aware, as DIRECT's shadow rays)
     vec3 O = rt_offset_ray(g.P + g.Ng * (2e-5 * length(g.P - u_camera_pos) + 1e-6), g.Ng);
     Rng rng = rng_init(uvec2(px), u_sample, 31u);
-    float t;
-    vec3 Lm = sanitize(miss_radiance(O, normalize(r0.xyz), rng, t));
-    imageStore(o_miss, q, vec4(Lm, t));
+    float t, gdist;
+    vec3 Lm = sanitize(miss_radiance(O, normalize(r0.xyz), length(g.P - u_camera_pos), rng, t, gdist));
+    imageStore(o_miss, q, vec4(Lm, gdist));
 #endif
 }

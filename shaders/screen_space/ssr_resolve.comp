@@ -142,6 +142,7 @@ void main() {
         vec4 lm = texelFetch(u_miss, qq, 0);
         if (lm.a > 0.0) {
             // parallax of the virtual image point ~ 1 / (camera distance + ray length)
+            // (lm.a: the ray's light-weighted distance, ssr_miss.comp)
             float par = 1.0 / (dcam + lm.a);
             msum += w * (1.0 - conf) * lm.rgb;
             mpar += w * (1.0 - conf) * par;

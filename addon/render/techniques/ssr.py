@@ -15,7 +15,9 @@ shadowed world reflection ``aov.world_spec``; the fallback for the share ``1 - a
 screen — misses, untrusted hits — is ``ssr.fallback``: with ``miss_trace`` (off by default)
 ``ssr_trace`` traces the same rays again through the scene's BVH (second dispatch,
 ``ssr_miss.comp``: direct light at the hit with one shadow ray, the world's light on it with one
-visibility ray, the world where the ray escapes) and ``ssr_resolve`` averages them over the
+visibility ray, the world where the ray escapes; ``miss_samples_moving`` of them while the camera
+moves; with the distance of the light's image — the hit's, or for a glossy hit's highlight the
+unfolded path to the light — for the reprojection) and ``ssr_resolve`` averages them over the
 same neighbours, weighted by the share each left unfound; ``ssr_fallback_temporal`` (the shared
 temporal pass) accumulates that fallback over frames — history reprojected by the virtual image
 point at the miss rays' mean distance ``ssr.miss_dist``, clamped to the current 3x3
@@ -39,10 +41,13 @@ See docs/techniques/SSR.md.
 | resolve_samples | 1–16 | neighbour rays reused per pixel |
 | scale | 0.25–1 | resolution scale of the trace |
 | miss_trace | 0/1 | trace the rays through the scene for the share not found on screen |
+| miss_samples | 1–16 | light samples per miss-trace hit, camera still |
+| miss_samples_moving | 1–16 | the same while the camera moves (default 2: the fallback's history is short) |
 
 Quality ladder (steps, resolve, scale, miss_trace): 0 = 32, 4, 1, 0; 1 = 64, 6, 1, 0; 2 = 128, 8, 1, 0;
-3 = 256, 12, 1, 0 (miss_trace off by default: see docs/techniques/SSR.md, fifth and sixth sessions:
-with its temporal pass the moving-camera error is halved but still ~2x the screen-only default's).
+3 = 256, 12, 1, 0 (miss_trace off by default: see docs/techniques/SSR.md, fifth to seventh sessions:
+under camera motion its one-frame error is 0.081 against the screen-only default's 0.067; of it, 0.061 is
+the screen part both share and 0.021 the fallback's own).
 """
 from __future__ import annotations
 
@@ -73,13 +78,15 @@ class SSRTracePass(ScreenPass):
         Param("scale", 1.0, 0.25, 1.0, "resolution scale of the trace"),
         Param("miss_trace", 0, 0, 1, "trace every ray through the scene too, for the share not found on screen "
               "(SSR's own fallback; 0 = DIRECT's shadowed world reflection)"),
+        Param("miss_samples", 1, 1, 16, "light samples at each miss-trace hit while the camera is still"),
+        Param("miss_samples_moving", 2, 1, 16, "light samples at each miss-trace hit while the camera moves "
+              "(the fallback's history is short then)"),
     )
     # q0 traces at full resolution: at half resolution (measured, glossy_spheres 96 px) the
     # reflections of the curved spheres lost detail (relMSE 0.0274 vs 0.0229), for ~1 ms
     # miss_trace off at every level: on, F12 renders improve everywhere measured (SSR.md, fifth
     # session); a moving viewport's frames are noisy: corridor dolly, one frame per call, masked
-    # relMSE vs a still render 0.131 with ssr_fallback_temporal (0.266 without) vs 0.067 off
-    # (SSR.md, sixth session)
+    # relMSE vs a still render 0.081 with ssr_fallback_temporal vs 0.067 off (SSR.md, seventh session)
     quality_ladder = ({"steps": 32, "scale": 1.0, "miss_trace": 0}, {"steps": 64, "scale": 1.0, "miss_trace": 0},
                       {"steps": 128, "scale": 1.0, "miss_trace": 0}, {"steps": 256, "scale": 1.0, "miss_trace": 0})
     reads = (ALBEDO, NORMAL, POSITION, GEONORMAL, HIZ)
@@ -137,6 +144,8 @@ class SSRTracePass(ScreenPass):
         rc.resources[RAY0].bind_to_image(0, read=True, write=False)
         rc.resources[RAY1].bind_to_image(1, read=True, write=False)
         rc.resources[MISS].bind_to_image(2, read=False, write=True)
+        moving = frame.camera_changed and not frame.camera_cut  # a moving viewport: history capped short
+        set_uniform(prog, "u_shade_samples", int(self["miss_samples_moving" if moving else "miss_samples"]))
         self.run(rc, prog, size)
 
 
@@ -234,7 +243,7 @@ class SSR(Technique):
 
 def ssr_passes(quality, *, provides=SSR_PROVIDES, fallback: str = WORLD_SPEC,
                replaces: tuple[str, ...] | None = None, reproject_by_hit: bool = True,
-               fallback_reproject: str = "miss", fallback_clamp: bool = True) -> list:
+               fallback_reproject: str = "miss", fallback_clamp: bool = True, miss_defines: dict | None = None) -> list:
     """SSR's own passes (Hi-Z, trace, resolve, temporal, composite), to follow DIRECT's.
 
     ``fallback``/``replaces`` go to the composite (see ``CompositePass``): the glossy light
@@ -251,11 +260,15 @@ def ssr_passes(quality, *, provides=SSR_PROVIDES, fallback: str = WORLD_SPEC,
     distance (``ssr.miss_dist``, default), ``"surface"`` by the surface's motion, ``"none"``:
     no temporal pass (the fallback of one frame; kept for measuring the difference).
     ``fallback_clamp``: that pass clamps its history to the 3x3 neighbourhood of the current
-    fallback while the camera moves (temporal.comp HISTORY_CLAMP)."""
+    fallback while the camera moves (temporal.comp HISTORY_CLAMP).
+    ``miss_defines``: extra defines of ``ssr_miss.comp`` (tests and benches, e.g.
+    ``{"SSR_MISS_HIT_PARALLAX": 1}``: reproject a glossy hit's highlights by the hit point)."""
     p = provides
     # SSR's own fallback (the miss trace) only where the caller keeps the default one
     own = fallback == WORLD_SPEC and replaces is None
     trace = SSRTracePass(quality, provides=p, miss=own)
+    if miss_defines:
+        trace.miss_defines = dict(miss_defines)
     resolve = SSRResolvePass(quality, provides=p, max_roughness=trace["max_roughness"], miss=own)
     if fallback_reproject not in ("miss", "surface", "none"):
         raise ValueError(f"ssr_passes: fallback_reproject must be 'miss', 'surface' or 'none', got {fallback_reproject!r}")
