@@ -33,6 +33,9 @@ leak, stability, lag.
   runs are merged into ``<out>/stability.json`` by (technique, quality, label). Cycles'
   frames are cached in ``--cache`` (the poses are deterministic). ``--stability-first F``
   (screening) renders only the first F poses of the same path and prints, saves nothing.
+  ``--stability-samples S`` (S > 1) renders each pose as an F12 animation frame does
+  (addon/blender/engine.py ``final_render`` with ``is_animation``: history kept, S jittered
+  frames accumulated, anti-aliased edges); label "F12 animation, S samples".
 * ``variant``: a ``--set`` variant against the default on the demo scenes (relMSE vs the
   cached one_bounce reference, mean ratio), ``<out>/variants.json``.
 * ``testmotion``: test_raster3d's six moves started at offsets 0/3/6 (whole image and
@@ -387,18 +390,21 @@ def _merge_runs(path, head, runs, key=("technique", "quality", "label")):
 
 
 def _cycles_motion(o, sc, n):
-    """Cycles one_bounce at 64 spp on the n poses (cached: the poses are deterministic)."""
+    """Cycles at 64 spp on the n poses, ``--stability-ref`` bounces (one_bounce: what RSM and
+    LPV model; full: VXGI with multi-bounce), cached: the poses are deterministic."""
     import numpy as np
 
     from gi_preview.blender import reference
 
-    path = os.path.join(o.cache, f"stability_cycles_cornell_{n}f_32px_64spp.npy")
+    mode = o.stability_ref
+    tag = "" if mode == "one_bounce" else f"_{mode}"
+    path = os.path.join(o.cache, f"stability_cycles_cornell_{n}f_32px_64spp{tag}.npy")
     if os.path.isfile(path):
         return list(np.load(path))
     cyc = []
     for k in range(n):
         move(sc, k, n)
-        cyc.append(reference.render_cycles(sc, 64, "one_bounce")[0][..., :3])
+        cyc.append(reference.render_cycles(sc, 64, mode)[0][..., :3])
     os.makedirs(o.cache, exist_ok=True)
     np.save(path, np.stack(cyc))
     return cyc
@@ -421,10 +427,13 @@ def part_stability(o):
     if o.stability_first:  # screening: the first F of the n poses (same path, fewer frames)
         cyc = cyc[: o.stability_first]
     d_cyc = [float(np.abs(a - b).mean()) for a, b in zip(cyc, cyc[1:])]
-    head = {"frames": n, "res": 32, "cycles_spp": 64, "first": o.stability_first or n,
+    head = {"frames": n, "res": 32, "cycles_spp": 64, "cycles_ref": o.stability_ref, "first": o.stability_first or n,
             "cycles": {"mean": float(np.mean(d_cyc)), "max": float(np.max(d_cyc)),
                        "diffs": [round(x, 6) for x in d_cyc]}}
     props = _overrides(o)
+    spp = max(1, o.stability_samples)
+    label = o.label or ("default" if spp == 1 else f"F12 animation, {spp} samples")
+    head["samples"] = spp
     runs = []
     for tech in o.techniques.split(","):  # DIRECT too: what the direct light alone changes
         for q in [int(x) for x in o.stability_quality.split(",")]:
@@ -437,7 +446,9 @@ def part_stability(o):
                 if k == 0 and props:
                     S.render(sd, tech, q, 1, keep_history=True, session="stab")
                     _set_props("stab", props)
-                res = S.render(sd, tech, q, 1, keep_history=True, session="stab")
+                # samples > 1: an F12 animation frame (engine.final_render with is_animation:
+                # history kept, `samples` jittered frames accumulated per pose, anti-aliased)
+                res = S.render(sd, tech, q, spp, keep_history=True, session="stab", warmup=(k == 0 and spp > 1))
                 LOCK.frame(last=k == nk - 1)
                 img = res.image[..., :3]
                 fin &= bool(np.isfinite(img).all())
@@ -461,7 +472,7 @@ def part_stability(o):
             # (flicker: a smooth change has none)
             ind_d = [float(np.abs(a - b).mean()) for a, b in zip(ind, ind[1:])]
             ind_d2 = [float(np.abs(a - 2 * b + c).mean()) for a, b, c in zip(ind, ind[1:], ind[2:])]
-            r = {"technique": tech, "quality": q, "label": o.label or "default", "props": props,
+            r = {"technique": tech, "quality": q, "label": label, "props": props, "samples": spp,
                  "finite": fin, "min": mn, "mean": float(np.mean(d)), "max": float(np.max(d)),
                  "max_at": int(np.argmax(d)) + 1, "ratio_mean": float(np.mean(d) / np.mean(d_cyc)),
                  "ratio_max": float(np.max(d) / np.max(d_cyc)),
@@ -492,7 +503,8 @@ def part_stability(o):
     bpy.data.scenes.remove(sc)
     if o.stability_first:  # screening runs are printed only (stability.json holds full runs)
         return
-    _merge_runs(os.path.join(o.out, "stability.json"), head, runs)
+    name = "stability.json" if o.stability_ref == "one_bounce" else f"stability_{o.stability_ref}.json"
+    _merge_runs(os.path.join(o.out, name), head, runs)
 
 
 def part_lag(o):
@@ -662,6 +674,12 @@ def main(argv=None):
     p.add_argument("--baselines", default="cycles,cycles_denoised,eevee")
     p.add_argument("--stability-frames", type=int, default=60)
     p.add_argument("--stability-quality", default="0,1,2,3", help="quality levels of the stability and lag parts")
+    p.add_argument("--stability-samples", type=int, default=1,
+                   help="frames accumulated per pose (1: the viewport's one frame; S > 1: an F12 animation "
+                        "frame, S jittered frames, anti-aliased); the label defaults to 'F12 animation, S samples'")
+    p.add_argument("--stability-ref", default="one_bounce", choices=("one_bounce", "full"),
+                   help="Cycles' bounces for the stability part (full for VXGI with multi-bounce); runs against "
+                        "full are merged into stability_full.json")
     p.add_argument("--stability-first", type=int, default=0,
                    help="screening: render only the first F of the --stability-frames poses (printed, not saved)")
     p.add_argument("--lag-frames", type=int, default=30, help="frames after the light's step (lag part)")
