@@ -18,6 +18,13 @@
 //    the last run, which clears the records for the next frame).
 // Emission is not voxelised: every emissive instance is a mesh light (gpu_scene.EmitterSet)
 // lighting the voxels like the other lights, and DIRECT draws emitters seen directly.
+// Many lights (u_cull = 1; passes/vxgi.py, light_cull): each voxel loops exactly over the
+// lights whose range of influence (passes/light_cull.light_ranges, as DIRECT's tiles) holds
+// its centre, suns always; the others are estimated by u_cull_samples lights chosen by power
+// among the lights that have a range, each counted only when it is not listed (unbiased).
+// Direct light once per frame (u_direct_mode): a reset frame's first run stores each
+// bucket's direct irradiance (Ep, Em) at the voxel's LIST position; the later runs load it
+// and only gather again.
 #define USE_SCENE_BUFFERS
 #define VX_SAMPLING
 #include "lib/common.glsl"
@@ -33,6 +40,14 @@ layout(local_size_x = 256) in;
 layout(std430, binding = VX_BINDING_RECORDS) buffer VoxelRecords { uint vx_rec[]; };
 layout(std430, binding = VX_BINDING_LIST) readonly buffer VoxelList { uint vx_list[]; };
 layout(binding = 0, rgba16f) uniform writeonly image3D o_radiance;
+#define VX_BINDING_CULL 6
+#define VX_BINDING_DIRECT 7
+#define VX_CULL_CHUNK 32  // listed lights gathered per shading loop (direct_irradiance)
+// light culling table: [4i, 4i+4) light i's range (centre, radius; < 0: everywhere);
+// [4n + i] the cdf of choosing lights 0..i among those with a range (by power); [5n + i] its probability
+layout(std430, binding = VX_BINDING_CULL) readonly buffer VoxelLightCull { float vx_cull[]; };
+// direct irradiance of a reset frame: 6 floats (Ep.rgb, Em.rgb) per bucket, 6 buckets per list entry
+layout(std430, binding = VX_BINDING_DIRECT) buffer VoxelDirect { float vx_direct[]; };
 
 uniform vec4 u_cur_origin[VX_MAX_CASCADES];  // this frame's grid (u_vx_origin: last frame's)
 uniform int u_rsm_light[RSM_MAX_VIEWS];      // light index of each RSM view
@@ -50,6 +65,10 @@ uniform int u_directional_opacity;  // level-0 opacity towards D: |n.D| (else 1)
 uniform float u_edge_opacity;       // smallest level-0 opacity of an occupied voxel (directional opacity)
 uniform float u_audit;  // > 0: energy audit, both sides of every surface show this radiance
 uniform int u_rotate;  // 1: the five side cones turn around the normal every frame
+uniform int u_cull;          // 1: lights out of a voxel's range by u_cull_samples power samples (else every light)
+uniform int u_cull_samples;
+uniform int u_direct_mode;   // 0: compute the direct light; 1: compute and store it; 2: load the stored one
+uniform uint u_direct_capacity;  // list entries vx_direct holds (entries past it compute, whatever the mode)
 #define VX_SIDE_CUT 0.5              // voxels: a record whose centre lies further off its plane shows one side
 
 // Visibility of the light from the RSM view v (sun) for the surface side at ps (already
@@ -154,6 +173,54 @@ void light_irradiance(int li, vec3 p, vec3 n, float vs, inout Rng rng, inout vec
     }
 }
 
+// Does voxel centre c lie in light li's range (or does li reach everywhere)?
+bool vx_listed(int li, vec3 c) {
+    vec4 r = vec4(vx_cull[4 * li], vx_cull[4 * li + 1], vx_cull[4 * li + 2], vx_cull[4 * li + 3]);
+    vec3 d = c - r.xyz;
+    return r.w < 0.0 || dot(d, d) <= r.w * r.w;
+}
+
+// A light with a range, by power (the table's cdf; the binary search of scene_rt.glsl's select_light)
+int vx_select_light(float u, out float prob) {
+    int n = u_light_count;
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (vx_cull[4 * n + mid] <= u) lo = mid + 1; else hi = mid;
+    }
+    prob = vx_cull[5 * n + lo];
+    return lo;
+}
+
+// Direct irradiance on both sides of the bucket's surface (p, n) in the voxel centred at c:
+// every light (u_cull = 0), or the lights listed for c plus u_cull_samples power samples of
+// the others, each weighted 1 / (prob x samples) and counted only when not listed. Lights are
+// gathered VX_CULL_CHUNK at a time, then shaded through one call site: a branch per light
+// would shade a light whenever any voxel of the SIMD group (list order: scattered voxels)
+// lists it, and a second call site doubled the shader's size (llvmpipe inlines it).
+void direct_irradiance(vec3 c, vec3 p, vec3 n, float vs, inout Rng rng, inout vec3 Ep, inout vec3 Em) {
+    int S = u_cull == 1 ? u_cull_samples : 0;
+    int li = 0, s = 0;
+    while (li < u_light_count || s < S) {
+        int idx[VX_CULL_CHUNK];
+        float w[VX_CULL_CHUNK];
+        int m = 0;
+        for (; li < u_light_count && m < VX_CULL_CHUNK; ++li)
+            if (u_cull == 0 || vx_listed(li, c)) { idx[m] = li; w[m] = 1.0; ++m; }
+        for (; li >= u_light_count && s < S && m < VX_CULL_CHUNK; ++s) {
+            float sel;
+            int j = vx_select_light(rng_next(rng), sel);
+            if (sel > 0.0 && !vx_listed(j, c)) { idx[m] = j; w[m] = 1.0 / (sel * float(S)); ++m; }
+        }
+        for (int k = 0; k < m; ++k) {
+            vec3 sp = vec3(0.0), sm = vec3(0.0);  // (x 1.0 for a listed light: the sum is unchanged bit for bit)
+            light_irradiance(idx[k], p, n, vs, rng, sp, sm);
+            Ep += sp * w[k];
+            Em += sm * w[k];
+        }
+    }
+}
+
 const vec3 FACE_DIR[6] = vec3[6](vec3(1, 0, 0), vec3(-1, 0, 0), vec3(0, 1, 0), vec3(0, -1, 0),
                                  vec3(0, 0, 1), vec3(0, 0, -1));
 
@@ -203,8 +270,17 @@ void main() {
         if (u_audit > 0.0) {
             Ep = Em = vec3(PI * u_audit);  // with rho = 1 below: L = u_audit on both sides
             rho = vec3(1.0);
+        } else if (u_direct_mode == 2 && i < u_direct_capacity) {
+            uint d = (i * 6u + uint(b)) * 6u;
+            Ep = vec3(vx_direct[d], vx_direct[d + 1u], vx_direct[d + 2u]);
+            Em = vec3(vx_direct[d + 3u], vx_direct[d + 4u], vx_direct[d + 5u]);
         } else {
-            for (int li = 0; li < u_light_count; ++li) light_irradiance(li, p, n, vs, rng, Ep, Em);
+            direct_irradiance(centre, p, n, vs, rng, Ep, Em);
+            if (u_direct_mode == 1 && i < u_direct_capacity) {
+                uint d = (i * 6u + uint(b)) * 6u;
+                vx_direct[d] = Ep.x; vx_direct[d + 1u] = Ep.y; vx_direct[d + 2u] = Ep.z;
+                vx_direct[d + 3u] = Em.x; vx_direct[d + 4u] = Em.y; vx_direct[d + 5u] = Em.z;
+            }
         }
         if (u_gather == 1 && u_audit <= 0.0) {
             float vis;

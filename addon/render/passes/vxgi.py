@@ -24,7 +24,11 @@
   indirect irradiance and sky light gathered by six cones per side through the history
   volume (``multi_bounce``); after a history reset, ``reset_bounces`` runs within the frame, each
   gathering from the previous run's volume, so the first frame is converged (no warm-up
-  frames). Writes level 0 of ``vxgi.radiance``: six directional volumes
+  frames); the direct light is computed by the first of those runs only (stored per voxel
+  list entry, loaded by the others). Many lights (``light_cull``, from ``MIN_CULL_LIGHTS``
+  lights on): each voxel shades exactly the lights whose range of influence
+  (``light_cull.light_ranges``, DIRECT's) holds its centre, the others by ``cull_samples``
+  power-sampled lights (unbiased). Writes level 0 of ``vxgi.radiance``: six directional volumes
   (the radiance each voxel emits towards ±x, ±y, ±z: the surface side facing that way;
   a dilated voxel shows only the side it lies on; opacity at least ``edge_opacity``),
   then builds the anisotropic mips (``shaders/vxgi/mip.comp``, front-to-back compositing of
@@ -45,10 +49,12 @@ import math
 import numpy as np
 
 from ..framegraph import (BUFFER, BUFFER_UPDATE_BARRIER_BIT, CAMERA_CUT, HOST, PARAM_CHANGE,
-                          SHADER_IMAGE_ACCESS_BARRIER_BIT, TEX3D, TEXTURE_FETCH_BARRIER_BIT,
-                          TEXTURE_UPDATE_BARRIER_BIT, Effect, Param, Pass, Res)
+                          SHADER_IMAGE_ACCESS_BARRIER_BIT, SHADER_STORAGE_BARRIER_BIT, TEX3D,
+                          TEXTURE_FETCH_BARRIER_BIT, TEXTURE_UPDATE_BARRIER_BIT, Effect, Param, Pass, Res)
 from ..gpu_scene import set_uniform
+from ..rt_scene import light_selection
 from .gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION
+from .light_cull import light_ranges
 from .rsm import RSM_POS, RSM_VIEWS, LightGatedGraph, MAX_RSM_VIEWS, shadow_lights
 from .screen_space import COLOR, Units, bind_frame, bind_gbuffer, camera_vectors
 from .shadows import ATLAS, VIEWS
@@ -60,6 +66,10 @@ MAX_CASCADES = 4
 SNAP = 4  # voxels: the cascades' corners move in steps of this many of their voxels
 BINDING_RECORDS = 5
 BINDING_LIST = 4
+BINDING_CULL = 6    # inject.comp's light culling table
+BINDING_DIRECT = 7  # inject.comp's direct irradiance of a reset frame
+DIRECT_FLOATS = 6 * 6  # per voxel list entry: (Ep.rgb, Em.rgb) of each of the 6 orientation buckets
+MAX_DIRECT_BYTES = 96 << 20  # below llvmpipe's 128 MiB storage block; entries past it compute every run
 GI = frozenset({Effect.INDIRECT_DIFFUSE, Effect.INDIRECT_SPECULAR, Effect.AO})
 
 
@@ -282,6 +292,13 @@ class VoxelInjectPass(Pass):
         Param("reset_bounces", 6, 1, 16, "injection runs within the frame after a history reset (first frame, "
               "camera cut, parameter change), one bounce more each: the volume starts converged instead of "
               "building up one bounce per frame (1 = the old build-up)"),
+        Param("light_cull", True, doc="many lights (at least light_cull.MIN_CULL_LIGHTS): a voxel shades exactly "
+              "the lights whose range of influence holds its centre (suns always), the others by cull_samples "
+              "lights chosen by power (unbiased; off = every light at every voxel)"),
+        Param("cull_fraction", 0.05, 0.0, 1.0, "ranges of influence (light_cull.light_ranges, as DIRECT's): where "
+              "a light's radiance falls below this fraction of all lights' at the scene's radius"),
+        Param("cull_samples", 4, 0, 32, "light samples per orientation bucket per frame for the lights out of a "
+              "voxel's range (0 = they are left out: biased dark)"),
     )
     # the voxels' own gather (multi-bounce, sky) steps a whole cone diameter: it runs for
     # every occupied voxel, and later bounces carry less of the image
@@ -294,6 +311,55 @@ class VoxelInjectPass(Pass):
         self.prev_grid = None
         self.zeros = None  # a zero-filled buffer of level 0's size: clears it by a texture upload
         self.reset_runs = 0  # injection runs in the last frame (> 1: a reset frame that converged in-frame)
+        self.cull_buf = self.direct_buf = None
+        self._cull_key = None
+        self.cull_info: dict = {}  # light_ranges() of the scene (+ "active": culling on this frame)
+        self.direct_entries = 0  # voxel list entries the direct store held in the last frame (0: not used)
+        self.occupied = 0        # occupied voxels read back in the last reset frame
+
+    def _cull_table(self, rc) -> bool:
+        """Uploads inject.comp's culling table (ranges + a power cdf over the lights that have a
+        range) when the lights change; True when some light is culled somewhere."""
+        gs = rc.scene
+        f = float(self["cull_fraction"]) if self["light_cull"] else 0.0
+        key = (gs.version, id(gs.scene), f)
+        if key != self._cull_key:
+            n = int(gs.light_count)
+            info = light_ranges(gs, f)
+            ranges = info["ranges"][:max(n, 1)]
+            prob = np.zeros(max(n, 1), np.float64)
+            if n:
+                prob[:n] = light_selection(gs.scene, gs.light_array, n)[n:2 * n]
+                prob[:n][ranges[:n, 3] < 0] = 0.0  # listed everywhere: never sampled
+            tot = float(prob.sum())
+            prob = prob / tot if tot > 0 else prob
+            cdf = np.cumsum(prob)
+            if tot > 0:
+                cdf[np.nonzero(prob)[0][-1]:] = 1.0
+            table = np.concatenate([ranges.reshape(-1), cdf, prob]).astype(np.float32)
+            if self.cull_buf is None or self.cull_buf.size != table.nbytes:
+                if self.cull_buf is not None:
+                    self.cull_buf.release()
+                self.cull_buf = rc.ctx.buffer(reserve=table.nbytes)
+            self.cull_buf.write(table.tobytes())
+            self.cull_info = dict(info, active=bool(info["partial"] and tot > 0))
+            self._cull_key = key
+        return bool(self.cull_info["active"])
+
+    def _direct_store(self, rc) -> int:
+        """A reset frame's direct-light store, sized to this frame's occupied voxels (read back:
+        a reset frame runs the injection several times anyway); returns its capacity in entries."""
+        rc.ctx.memory_barrier(BUFFER_UPDATE_BARRIER_BIT)  # the voxelisation's list appends -> the read-back
+        count = int(np.frombuffer(self.voxelize.list.read(size=4), np.uint32)[0])
+        self.occupied = count
+        entry = DIRECT_FLOATS * 4
+        cap = min(max(count, 1), MAX_DIRECT_BYTES // entry)
+        if self.direct_buf is None or self.direct_buf.size < cap * entry:
+            if self.direct_buf is not None:
+                self.direct_buf.release()
+            grow = min(max(cap + cap // 4, 1024), MAX_DIRECT_BYTES // entry)
+            self.direct_buf = rc.ctx.buffer(reserve=grow * entry)
+        return min(count, self.direct_buf.size // entry)
 
     def resources(self):
         v = self.voxelize
@@ -349,6 +415,10 @@ class VoxelInjectPass(Pass):
         set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
         res[VOXELS].bind_to_storage_buffer(BINDING_RECORDS)
         self.voxelize.list.bind_to_storage_buffer(BINDING_LIST)
+        cull = self._cull_table(rc)
+        set_uniform(prog, "u_cull", 1 if cull else 0)
+        set_uniform(prog, "u_cull_samples", int(self["cull_samples"]))
+        self.cull_buf.bind_to_storage_buffer(BINDING_CULL)
         nbytes = n * n * n * C * 6 * 8
         if self.zeros is None or self.zeros.size != nbytes:
             if self.zeros is not None:
@@ -367,6 +437,13 @@ class VoxelInjectPass(Pass):
         runs = 1 if (prev is not None or not gathers) else max(1, int(self["reset_bounces"]))
         if not multi:
             runs = min(runs, 2)  # sky light only: one gather is all there is
+        # the direct light does not change between the runs: the first stores it, the others load it
+        cap = self._direct_store(rc) if runs > 1 else 0
+        self.direct_entries = cap
+        if self.direct_buf is None:
+            self.direct_buf = rc.ctx.buffer(reserve=DIRECT_FLOATS * 4)
+        self.direct_buf.bind_to_storage_buffer(BINDING_DIRECT)
+        set_uniform(prog, "u_direct_capacity", int(cap))
         for k in range(runs):
             last = k == runs - 1
             dst = cur if (runs - 1 - k) % 2 == 0 else other
@@ -383,8 +460,11 @@ class VoxelInjectPass(Pass):
             md = float(self["max_distance"])
             set_uniform(prog, "u_max_distance", md if md > 0 else float((prev or grid).extent()))
             set_uniform(prog, "u_keep_records", 0 if last else 1)
-            if k > 0:  # the previous run's level 0 (image stores) -> its mips -> this run's sampler
-                rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT | TEXTURE_FETCH_BARRIER_BIT)
+            set_uniform(prog, "u_direct_mode", 0 if runs == 1 else (1 if k == 0 else 2))
+            if k > 0:  # the previous run's level 0 (image stores) -> its mips -> this run's sampler;
+                # its record and direct-light stores -> this run's reads
+                rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT | TEXTURE_FETCH_BARRIER_BIT
+                                      | SHADER_STORAGE_BARRIER_BIT)
                 build_mips(rc, src, grid)
                 rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT | TEXTURE_FETCH_BARRIER_BIT)
             # clear level 0 (what was stored in it two frames ago), then write the occupied voxels
@@ -397,9 +477,12 @@ class VoxelInjectPass(Pass):
         self.history_valid = True
 
     def release(self):
-        if self.zeros is not None:
-            self.zeros.release()
-            self.zeros = None
+        for attr in ("zeros", "cull_buf", "direct_buf"):
+            b = getattr(self, attr)
+            if b is not None:
+                b.release()
+                setattr(self, attr, None)
+        self._cull_key = None
 
 
 class VoxelMipPass(Pass):
