@@ -796,9 +796,14 @@ class FrameGraph:
             self._barrier_before(rc, p)
             if timers:
                 q = rc.ctx.query(time=True)
+                t0 = time.perf_counter()
                 with q:
                     p.execute(rc, frame)
-                times[p.name] = q.elapsed / 1e6 if q.elapsed else 0.0
+                ns = q.elapsed  # blocks until the GPU work is done
+                # moderngl reads GL_TIME_ELAPSED as 32 bits (clamped at 2^32-1 ns = 4295 ms):
+                # past that, the wall time up to the result (an upper bound of the GPU time)
+                times[p.name] = ((time.perf_counter() - t0) * 1e3 if ns >= 0xFFFFFFFF
+                                 else (ns / 1e6 if ns else 0.0))
             else:
                 t0 = time.perf_counter()
                 p.execute(rc, frame)
