@@ -72,6 +72,8 @@ def main(argv=None):
     p.add_argument("--cache", default=None)
     p.add_argument("--repro", default="", help="issue 9's reproduction scenes instead of the demo scenes")
     p.add_argument("--motion", default="", help="reflection lag under camera motion on these reproduction scenes")
+    p.add_argument("--motion-cycles", type=int, default=0, help="with --motion: also compare every frame with "
+                   "Cycles one_bounce at this many spp at that frame's camera (error against the truth, not lag alone)")
     p.add_argument("--motion-miss", type=int, default=0, help="with --motion: also SSR with miss_trace 1, its "
                    "fallback accumulated (ssr_fallback_temporal) and of one frame (no temporal pass), each "
                    "against a still render with miss_trace 1 of this many frames (e.g. 64)")
@@ -394,6 +396,7 @@ def motion(opts):
         sd = export_scene(reference.evaluated_depsgraph(sc))
         mask = S.masks(name, sd, S.material_ids(sd))["reflective"]
         errs = {v: [] for v in (*variants, *miss_variants)}
+        errs_cyc = {v: [] for v in (*variants, *miss_variants)}
         for key, tech in (("motion_truth_miss", "SSR"), *(("motion_" + v, t) for v, t in miss_variants.items())):
             if miss_variants:
                 session.set_pass_properties(key, {"ssr_trace": {"miss_trace": 1}}, technique=tech, quality=1)
@@ -403,9 +406,17 @@ def motion(opts):
             m[:3, 3] += step * k
             moved.camera.matrix_world = m.astype(moved.camera.matrix_world.dtype)
             truth = session.render(moved, "SSR", 1, 16, session="motion_truth").image
+            cyc = None
+            if opts.motion_cycles:  # Cycles one_bounce (the repro's reference) at this camera
+                loc0 = tuple(sc.camera.location)
+                sc.camera.location = tuple(float(a + b) for a, b in zip(loc0, step * k))
+                cyc = reference.render_cycles(sc, opts.motion_cycles, "one_bounce")[0]
+                sc.camera.location = loc0
             for v, tech in variants.items():
                 img = session.render(moved, tech, 1, 1, keep_history=True, session="motion_" + v).image
                 errs[v].append(metrics.relmse(img, truth, mask=mask))
+                if cyc is not None:
+                    errs_cyc[v].append(metrics.relmse(img, cyc, mask=mask))
                 if k == frames - 1:
                     imageio.write_png(os.path.join(opts.out, f"motion_{name}_{v}.png"), metrics.view_standard(img))
             if miss_variants:
@@ -413,6 +424,8 @@ def motion(opts):
             for v, tech in miss_variants.items():
                 img = session.render(moved, tech, 1, 1, keep_history=True, session="motion_" + v).image
                 errs[v].append(metrics.relmse(img, truth_m, mask=mask))
+                if cyc is not None:
+                    errs_cyc[v].append(metrics.relmse(img, cyc, mask=mask))
                 if k == frames - 1:
                     imageio.write_png(os.path.join(opts.out, f"motion_{name}_{v}.png"), metrics.view_standard(img))
             if k == frames - 1:
@@ -423,9 +436,15 @@ def motion(opts):
         for key in ["motion_truth", "motion_truth_miss"] + ["motion_" + v for v in (*variants, *miss_variants)]:
             session.release_session(key)
         entry = {v: {"per_frame": e, "mean_frames_4_12": float(np.mean(e[3:]))} for v, e in errs.items()}
+        for v, e in errs_cyc.items():
+            if e:
+                entry[v].update(vs_cycles_per_frame=e, vs_cycles_mean_frames_4_12=float(np.mean(e[3:])))
         out["scenes"][name] = entry
         log(f"{name}: reflection error vs a still render, frames 4-12: " + ", ".join(
             f"{v} {entry[v]['mean_frames_4_12']:.4f}" for v in entry))
+        if opts.motion_cycles:
+            log(f"{name}: reflection error vs Cycles one_bounce ({opts.motion_cycles} spp) at each frame's camera, "
+                "frames 4-12: " + ", ".join(f"{v} {entry[v]['vs_cycles_mean_frames_4_12']:.4f}" for v in entry))
         bpy_scene_remove(sc)
     techniques.REGISTRY.pop(SSRSurfaceMotion.id, None)
     techniques.REGISTRY.pop(SSRMissOneFrame.id, None)
