@@ -121,7 +121,13 @@ int mesh_light_of(int instance) {
 // ray ends exactly at the sample), a shadow ray for lights that cast shadows. Returns
 // f * Li * w / pdf for the surface (bs, N, Ng) seen from V; w = power heuristic against
 // the BSDF's pdf when mis (delta lights: 1), else 1. Consumes one rng_next4 when there are lights.
-vec3 shade_direct_at(Surface bs, vec3 p, vec3 N, vec3 Ng, vec3 V, inout Rng rng, bool mis) {
+// shade_direct_split also returns the part the glossy lobe reflects and the distance to the
+// light point (SSR's miss trace: a highlight is an image of the light, it moves like a point
+// that far beyond the hit).
+vec3 shade_direct_split(Surface bs, vec3 p, vec3 N, vec3 Ng, vec3 V, inout Rng rng, bool mis,
+                        out vec3 glossy, out float ldist) {
+    glossy = vec3(0.0);
+    ldist = 0.0;
     if (u_light_count <= 0) return vec3(0.0);
     vec4 ul = rng_next4(rng);
     float sel;
@@ -135,7 +141,15 @@ vec3 shade_direct_at(Surface bs, vec3 p, vec3 N, vec3 Ng, vec3 V, inout Rng rng,
     if (L.axis_w.w > 0.5 && scene_occluded(p, ls.dir, 0.0, ls.dist * (1.0 - 1e-4))) return vec3(0.0);
     float lpdf = sel * ls.pdf;
     float w = (ls.delta || !mis) ? 1.0 : power_heuristic(lpdf, pdf_principled(bs, N, V, ls.dir));
+    glossy = fe.glossy * ls.Li * (w / lpdf);
+    ldist = ls.dist;
     return f * ls.Li * (w / lpdf);
+}
+
+vec3 shade_direct_at(Surface bs, vec3 p, vec3 N, vec3 Ng, vec3 V, inout Rng rng, bool mis) {
+    vec3 glossy;
+    float ldist;
+    return shade_direct_split(bs, p, N, Ng, V, rng, mis, glossy, ldist);
 }
 
 vec3 shade_direct(SurfaceHit s, vec3 V, inout Rng rng) {

@@ -45,32 +45,8 @@ uniform int u_shade_samples;   // light/BSDF/world samples per hit (param miss_s
 // the distance stored for a ray that escapes (its light comes from infinitely far: a virtual
 // image this far behind the mirror barely moves with the camera, like the sky)
 #define SSR_MISS_ESCAPE_DIST 1000.0
-// shade_direct_at (lib/scene_rt.glsl), the same light sample with the same random numbers
-// and the same result, also returning the share of it the hit's glossy lobe reflects and the
-// distance to the light point: a light's highlight seen through a glossy hit is an image of
-// the light, which moves like a point that far beyond the hit (see gdist below)
-vec3 shade_direct_split(Surface bs, vec3 p, vec3 N, vec3 Ng, vec3 V, inout Rng rng, bool mis,
-                        out vec3 glossy, out float ldist) {
-    glossy = vec3(0.0);
-    ldist = 0.0;
-    if (u_light_count <= 0) return vec3(0.0);
-    vec4 ul = rng_next4(rng);
-    float sel;
-    int li = select_light(ul.x, sel);
-    Light Lt = lights[li];
-    LightSample ls = sample_light(Lt, p, ul.yz, ul.w);
-    if (ls.pdf <= 0.0 || sel <= 0.0 || dot(ls.dir, Ng) <= 0.0) return vec3(0.0);
-    BsdfEval fe = eval_principled(bs, N, V, ls.dir);
-    vec3 f = fe.diffuse + fe.glossy;
-    if (max3(f) <= 0.0 || max3(ls.Li) <= 0.0) return vec3(0.0);
-    if (Lt.axis_w.w > 0.5 && scene_occluded(p, ls.dir, 0.0, ls.dist * (1.0 - 1e-4))) return vec3(0.0);
-    float lpdf = sel * ls.pdf;
-    float w = (ls.delta || !mis) ? 1.0 : power_heuristic(lpdf, pdf_principled(bs, N, V, ls.dir));
-    glossy = fe.glossy * ls.Li * (w / lpdf);
-    ldist = ls.dist;
-    return f * ls.Li * (w / lpdf);
-}
-
+// the direct light at a hit: shade_direct_split (lib/scene_rt.glsl) also returns the glossy
+// share and the light's distance (see gdist below)
 // t: the distance to the hit (SSR_MISS_ESCAPE_DIST: escaped). gdist: the distance the
 // reflected light's image lies behind the reflecting pixel, as one parallax: a hit's light is
 // where the hit is (t), except what its glossy lobe reflects from a light, whose image lies at
