@@ -61,6 +61,7 @@ uniform sampler2D u_world_spec;  // DIRECT's shadowed world reflection
 #endif
 uniform int u_resolve_samples;
 uniform float u_max_roughness;
+uniform int u_rough_trace;   // 1: rougher surfaces take their whole lobe from the miss trace
 
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
@@ -81,7 +82,8 @@ void main() {
     vec3 N = g.N;
     float NoV = max(dot(N, V), 1e-4);
     if (max3(specular_albedo(s, NoV)) < 1e-4) { imageStore(o_spec, px, vec4(0.0)); return; }
-    if (s.roughness > u_max_roughness) { imageStore(o_spec, px, vec4(0.0)); return; }
+    bool rough = s.roughness > u_max_roughness;
+    if (rough && u_rough_trace == 0) { imageStore(o_spec, px, vec4(0.0)); return; }
     ivec2 rsize = textureSize(u_ray0, 0);
     vec2 scale = vec2(rsize) / u_resolution;
     ivec2 qc = min(ivec2((vec2(px) + 0.5) * scale), rsize - 1);
@@ -108,7 +110,7 @@ void main() {
         if (!(r0.w > 0.0)) continue;
         vec4 r1 = texelFetch(u_ray1, qq, 0);
         vec3 L = r0.xyz;
-        bool found = r1.z > 0.0;
+        bool found = r1.z > 0.0 && !rough;   // a rough pixel takes nothing from the screen
         // the closed-form weight holds only for a ray drawn from this pixel's own lobe; at a
         // reduced trace scale the ray at qc was traced from another pixel (ssr_trace's
         // mapping) unless that pixel is this one, and is weighted like a neighbour's

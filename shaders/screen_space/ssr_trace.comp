@@ -44,6 +44,7 @@ uniform float u_max_roughness;
 uniform float u_edge_fade;    // fraction of the screen
 uniform float u_near;
 uniform float u_bias;
+uniform int u_rough_trace;    // 1: surfaces rougher than u_max_roughness draw a ray for the miss trace only
 
 void main() {
     ivec2 q = ivec2(gl_GlobalInvocationID.xy);
@@ -57,7 +58,8 @@ void main() {
     vec3 V = view_dir(g.P);
     vec3 N = g.N;
     float NoV = max(dot(N, V), 1e-4);
-    if (s.roughness > u_max_roughness || max3(specular_albedo(s, NoV)) < 1e-4) {
+    bool rough = s.roughness > u_max_roughness;
+    if ((rough && u_rough_trace == 0) || max3(specular_albedo(s, NoV)) < 1e-4) {
         imageStore(o_ray0, q, vec4(0.0));
         return;
     }
@@ -72,6 +74,9 @@ void main() {
         return;
     }
     imageStore(o_ray0, q, vec4(L, min(pdf, FLT_MAX)));
+    // rougher than u_max_roughness (u_rough_trace): no screen march, the whole lobe is left to
+    // the miss trace (ssr_miss.comp traces this ray through the scene)
+    if (rough) return;
     // ---- the ray as a screen-space segment
     vec3 O = g.P + g.Ng * u_bias;
     float dO = view_depth(O);

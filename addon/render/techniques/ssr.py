@@ -76,19 +76,21 @@ class SSRTracePass(ScreenPass):
         Param("edge_fade", 0.08, 0.0, 0.5, "screen fraction over which hits fade at the border"),
         Param("bias", 0.005, 0.0, 1.0, "ray origin offset along the geometric normal"),
         Param("scale", 1.0, 0.25, 1.0, "resolution scale of the trace"),
-        Param("miss_trace", 0, 0, 1, "trace every ray through the scene too, for the share not found on screen "
+        Param("miss_trace", 1, 0, 1, "trace every ray through the scene too, for the share not found on screen "
               "(SSR's own fallback; 0 = DIRECT's shadowed world reflection)"),
+        Param("rough_trace", 1, 0, 1, "surfaces rougher than max_roughness take their whole glossy lobe from the "
+              "miss trace (with miss_trace; 0 = DIRECT's shadowed world reflection)"),
         Param("miss_samples", 1, 1, 16, "light samples at each miss-trace hit while the camera is still"),
         Param("miss_samples_moving", 2, 1, 16, "light samples at each miss-trace hit while the camera moves "
               "(the fallback's history is short then)"),
     )
     # q0 traces at full resolution: at half resolution (measured, glossy_spheres 96 px) the
     # reflections of the curved spheres lost detail (relMSE 0.0274 vs 0.0229), for ~1 ms
-    # miss_trace off at every level: on, F12 renders improve everywhere measured (SSR.md, fifth
-    # session); a moving viewport's frames are noisy: corridor dolly, one frame per call, masked
-    # relMSE vs a still render 0.081 with ssr_fallback_temporal vs 0.067 off (SSR.md, seventh session)
-    quality_ladder = ({"steps": 32, "scale": 1.0, "miss_trace": 0}, {"steps": 64, "scale": 1.0, "miss_trace": 0},
-                      {"steps": 128, "scale": 1.0, "miss_trace": 0}, {"steps": 256, "scale": 1.0, "miss_trace": 0})
+    # miss_trace and rough_trace on at every level (SSR.md, "Seventh session (F7)"): F12 renders
+    # improve every column measured (sunlit_room q1 vs full 0.07582 off -> 0.07444, below before
+    # issue 9's 0.07466; glossy_spheres q1 vs one_bounce 0.01910 -> 0.01020), and under camera
+    # motion against Cycles (corridor frames 4-12) 0.2879 off -> 0.1652 with the trace
+    quality_ladder = tuple({"steps": n, "scale": 1.0, "miss_trace": 1, "rough_trace": 1} for n in (32, 64, 128, 256))
     reads = (ALBEDO, NORMAL, POSITION, GEONORMAL, HIZ)
     writes = (RAY0, RAY1)
     declared = (Res(RAY0, scale="scale"), Res(RAY1, scale="scale"))
@@ -121,12 +123,18 @@ class SSRTracePass(ScreenPass):
         for k, u in (("thickness", "u_thickness"), ("max_distance", "u_max_distance"),
                      ("max_roughness", "u_max_roughness"), ("edge_fade", "u_edge_fade"), ("bias", "u_bias")):
             set_uniform(prog, u, float(self[k]))
+        set_uniform(prog, "u_rough_trace", self.rough_on())
         size = self.size(rc)
         rc.resources[RAY0].bind_to_image(0, read=False, write=True)
         rc.resources[RAY1].bind_to_image(1, read=False, write=True)
         self.run(rc, prog, size)
         if self.miss:
             self._miss(rc, frame, size)
+
+    def rough_on(self) -> int:
+        """1 where surfaces rougher than ``max_roughness`` draw a ray for the miss trace only:
+        ``rough_trace`` and ``miss_trace`` on and SSR's own fallback (``miss``)."""
+        return int(self.miss and int(self["miss_trace"]) > 0 and int(self["rough_trace"]) > 0)
 
     def _miss(self, rc, frame, size):
         """Second dispatch: the rays just stored, traced through the scene's BVH."""
@@ -168,10 +176,12 @@ class SSRResolvePass(ScreenPass):
     declared = (Res(RESOLVED, dtype="f2", check="radiance"), Res(HIT_DIST, components=1, check="radiance"))
     history_resets = frozenset()
 
-    def __init__(self, quality=None, *, miss: bool = False, **kw):
-        """miss: also write ``ssr.fallback`` from ``ssr.miss`` (see ssr_resolve.comp, SSR_MISS)."""
+    def __init__(self, quality=None, *, miss: bool = False, trace: "SSRTracePass | None" = None, **kw):
+        """miss: also write ``ssr.fallback`` from ``ssr.miss`` (see ssr_resolve.comp, SSR_MISS).
+        trace: the trace pass whose ``rough_trace`` switch this resolve follows."""
         super().__init__(quality, **kw)
         self.miss = miss
+        self.trace = trace
         if miss:
             self.reads = self.reads + (MISS, WORLD_SPEC)
             self.writes = self.writes + (FALLBACK, MISS_DIST)
@@ -194,6 +204,7 @@ class SSRResolvePass(ScreenPass):
         units.tex(prog, "u_radiance", res[DIRECT_RADIANCE])
         set_uniform(prog, "u_resolve_samples", int(self["resolve_samples"]))
         set_uniform(prog, "u_max_roughness", float(self["max_roughness"]))
+        set_uniform(prog, "u_rough_trace", self.trace.rough_on() if self.miss and self.trace is not None else 0)
         rc.resources[RESOLVED].bind_to_image(0, read=False, write=True)
         rc.resources[HIT_DIST].bind_to_image(1, read=False, write=True)
         self.run(rc, prog)
@@ -269,7 +280,7 @@ def ssr_passes(quality, *, provides=SSR_PROVIDES, fallback: str = WORLD_SPEC,
     trace = SSRTracePass(quality, provides=p, miss=own)
     if miss_defines:
         trace.miss_defines = dict(miss_defines)
-    resolve = SSRResolvePass(quality, provides=p, max_roughness=trace["max_roughness"], miss=own)
+    resolve = SSRResolvePass(quality, provides=p, max_roughness=trace["max_roughness"], miss=own, trace=trace)
     if fallback_reproject not in ("miss", "surface", "none"):
         raise ValueError(f"ssr_passes: fallback_reproject must be 'miss', 'surface' or 'none', got {fallback_reproject!r}")
     passes = [HiZPass(quality, provides=p), trace, resolve,
