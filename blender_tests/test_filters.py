@@ -264,3 +264,60 @@ def test_denoiser_options_end_any_graph():
     finally:
         release("opt")
         bpy.data.scenes.remove(sc)
+
+
+# ---------------------------------------------------------------- path tracer's in-pixel positions
+def _stratified_up_to_rotation(x, n):
+    """Per pixel (last axes): can the n in-pixel positions x[:n] (axis 0, in [0, 1)) be shifted
+    on the circle so that each 1/n strip holds one? (A Cranley-Patterson rotation keeps a
+    stratified set stratified only on the rotated grid.) The valid shifts, if any, start where
+    a point sits at a strip's lower edge, so those n shifts are the candidates."""
+    x = x[:n]
+    ok = np.zeros(x.shape[1:], bool)
+    for i in range(n):
+        s = np.mod(x[i], 1.0 / n) - 1e-6
+        bins = np.floor(np.mod(x - s, 1.0) * n).astype(int)
+        ok |= (np.sort(bins, axis=0) == np.arange(n).reshape((n,) + (1,) * (x.ndim - 1))).all(axis=0)
+    return ok
+
+
+@pytest.mark.parametrize("sequence", [0, 1, 2])
+def test_pt_pixel_sequence_stratified_per_pixel(monkeypatch, sequence):
+    """The path tracer's in-pixel camera-ray positions (param pixel_sequence). 1: over
+    consecutive frames of a viewport / animation (the session's running counter, starting
+    wherever it is) Halton(2,3), Cranley-Patterson rotated per pixel: any 16 consecutive frames
+    put one x in each 1/16 strip of the rotated grid and any 9 one y in each 1/9 strip (any
+    2^k / 3^k consecutive indices have distinct last k digits), and neighbouring pixels sit at
+    different places. 0, and 2 (the default) where history is kept: white noise, not
+    stratified (p ~ 1e-5 per pixel even with the best rotation). 2 in a fresh accumulation
+    (F12; here PT's offline renderer, whose frames keep no history): Halton."""
+    from gi_preview.render.techniques import pt as ptm
+    monkeypatch.setattr(ptm.PathTracePass, "debug_pixel_positions", True)
+    sc, sd = build("cornell", 8)
+    sess = f"pixseq{sequence}"
+
+    def check(pos, stratified):
+        assert pos.min() >= 0.0 and pos.max() < 1.0
+        strat_x = _stratified_up_to_rotation(pos[..., 0], 16)
+        strat_y = _stratified_up_to_rotation(pos[..., 1], 9)
+        if stratified:
+            assert strat_x.all() and strat_y.all(), f"{(~strat_x).sum()} / {(~strat_y).sum()} pixels not stratified"
+            # per-pixel rotation: neighbours are not at the same place in a frame
+            dx = np.abs(pos[:, :, 1:] - pos[:, :, :-1]).max(axis=-1)
+            assert (dx > 1e-3).mean() > 0.9
+        else:
+            assert not strat_x.any()
+
+    try:
+        session.set_pass_properties(sess, {"path_trace": {"pixel_sequence": sequence}}, technique="PT", quality=0)
+        # quality 0: 1 spp per frame; a first frame so the session's counter is not at 0
+        shot = lambda: session.render(sd, "PT", 0, 1, keep_history=True, warmup=False, session=sess).image  # noqa: E731
+        shot()
+        check(np.stack([shot()[..., :2] for _ in range(16)]), sequence == 1)  # (16, 8, 8, 2)
+        if sequence == 2:
+            r = get_gl().call(lambda: ptm.render_offline(get_gl().ctx, sd, 16, spp_per_frame=1, seed=3))
+            check(r["frames"][..., :2], True)
+    finally:
+        release(sess)
+        bpy.data.scenes.remove(sc)
+

@@ -277,6 +277,7 @@ class FrameState:
     scene_edits: frozenset = frozenset()  # of SCENE_EDITS categories changed since last frame
     seed: int = 0
     warmup: bool = False  # a warm-up frame (not accumulated)
+    keeps_history: bool = False  # history kept across renders (viewport, animation), not one fresh accumulation
 
 
 class Resources(dict):

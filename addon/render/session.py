@@ -209,7 +209,7 @@ class Session:
                                camera_changed=self.prev_view_proj is None or not np.allclose(vp, self.prev_view_proj),
                                camera_cut=cut and first_frame, scene_changed=bool(edits) and first_frame,
                                scene_edits=frozenset(edits) if first_frame else frozenset(),
-                               seed=seed, warmup=is_warm)
+                               seed=seed, warmup=is_warm, keeps_history=bool(keep_history))
             t0 = time.perf_counter()
             setup_f0 = self._setup_clock()
             pass_ms = graph.execute(self.rc, frame, timers=True)

@@ -1,7 +1,10 @@
 // pt.comp — PT: unidirectional path tracer on the software two-level BVH (lib/bvh.glsl).
 // References: Kajiya 1986 (the rendering equation); Veach & Guibas 1995 (MIS, power
 // heuristic); Heitz 2018 (GGX visible-normal sampling, via lib/brdf.glsl).
-// One invocation = one pixel, u_spp samples (box-filter jitter over the pixel square).
+// One invocation = one pixel, u_spp samples (box-filter jitter over the pixel square): the
+// in-pixel position is white noise (u_pixel_sequence 0) or Halton(2,3) indexed by the frame
+// counter u_sample (x u_spp + k), Cranley-Patterson rotated per pixel (u_pixel_sequence 1; the
+// pass chooses per frame: param pixel_sequence, techniques/pt.py).
 // Every light type in Cycles' units with next-event estimation + MIS against BSDF sampling;
 // lights do not occlude (Cycles' lights are transparent to rays); world colour seen and
 // lighting through BSDF sampling; Russian roulette after u_rr_start bounces.
@@ -36,6 +39,7 @@ uniform int u_max_diffuse;
 uniform int u_max_glossy;
 uniform int u_rr_start;
 uniform ivec2 u_offset;    // tile origin (dispatches are tiled to stay short)
+uniform int u_pixel_sequence;  // in-pixel position: 0 white noise, 1 Halton(2,3) over u_sample, rotated per pixel
 uniform int u_lights_visible_camera;  // Blender's default for light objects: 0
 
 // ---------------------------------------------------------------- path tracing
@@ -129,6 +133,23 @@ PathOut trace_path(vec2 pix, inout Rng rng) {
     return out_;
 }
 
+// Halton(2,3) point i in [0,1)^2 (radical inverses; base 2 by bit reversal).
+vec2 halton23(uint i) {
+    float h2 = float(bitfieldReverse(i) >> 8u) * (1.0 / 16777216.0);
+    float h3 = 0.0, f = 1.0 / 3.0;
+    for (uint n = i; n > 0u; n /= 3u) { h3 += f * float(n % 3u); f /= 3.0; }
+    return vec2(h2, h3);
+}
+
+// The in-pixel position of sample `index` of pixel px: Halton(2,3) with a per-pixel
+// Cranley-Patterson rotation (a hash of the pixel alone, so it stays fixed over frames and the
+// pixel's own positions stay stratified; neighbours do not move together).
+vec2 pixel_halton(ivec2 px, uint index) {
+    uvec4 h = pcg4d(uvec4(uvec2(px), 0x2545F491u, 0x9E3779B9u));
+    vec2 rot = vec2(h.xy >> 8u) * (1.0 / 16777216.0);
+    return fract(halton23(index) + rot);
+}
+
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy) + u_offset;
     ivec2 size = imageSize(o_color);
@@ -137,8 +158,12 @@ void main() {
     acc.color = vec3(0.0); acc.direct = vec3(0.0); acc.ind_diffuse = vec3(0.0); acc.ind_glossy = vec3(0.0);
     for (int k = 0; k < u_spp; ++k) {
         Rng rng = rng_init(uvec2(px), u_sample * uint(u_spp) + uint(k), u_seed);
-        vec2 j = rng_next2(rng);
+        vec2 j = rng_next2(rng);  // drawn in both modes: the path's random numbers stay the same
+        if (u_pixel_sequence >= 1) j = pixel_halton(px, u_sample * uint(u_spp) + uint(k));
         PathOut r = trace_path(vec2(px) + j, rng);
+#ifdef PT_DEBUG_PIXEL_POS
+        r.color = vec3(j, 0.0);  // tests: the colour is the in-pixel position
+#endif
         acc.color += sanitize(r.color);
         acc.direct += sanitize(r.direct);
         acc.ind_diffuse += sanitize(r.ind_diffuse);

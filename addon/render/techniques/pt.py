@@ -22,6 +22,7 @@ changes, moving objects rebuilds the top level only, and every graph of the sess
 | glossy_bounces | 0–64 | Cycles' Glossy bounces |
 | rr_start | 0–64 | Russian roulette starts after this many bounces |
 | tile | 16–1024 | pixels per side of one dispatch (keeps a dispatch short on slow GPUs) |
+| pixel_sequence | 0–2 | in-pixel position of the camera ray: 0 white noise per sample; 1 Halton(2,3) indexed by the frame counter (``frame.sample`` x spp + k) with a per-pixel Cranley-Patterson rotation; 2 (default) Halton where the frames form one fresh accumulation (F12, offline renders: ``frame.keeps_history`` False), white noise where history is kept (viewport, animation: TAA under motion measured worse with Halton, docs/techniques/TAA.md) |
 
 Quality ladder: spp_per_frame 1, 2, 4, 8. Compared with: the full Cycles reference.
 AOVs: ``GI_Direct`` (paths with one scattering), ``GI_IndirectDiffuse`` /
@@ -60,8 +61,13 @@ class PathTracePass(Pass):
         Param("glossy_bounces", 12, 0, 64, "Cycles' Glossy bounces"),
         Param("rr_start", 3, 0, 64, "Russian roulette after this many bounces"),
         Param("tile", 128, 16, 1024, "pixels per side of one dispatch"),
+        Param("pixel_sequence", 2, 0, 2, "in-pixel camera-ray position: 0 white noise, 1 Halton(2,3) over the "
+              "frame counter, rotated per pixel, 2 Halton in a fresh accumulation (F12), white noise where "
+              "history is kept (viewport, animation)"),
     )
     quality_ladder = ({"spp_per_frame": 1}, {"spp_per_frame": 2}, {"spp_per_frame": 4}, {"spp_per_frame": 8})
+
+    debug_pixel_positions = False  # tests: the colour output is the camera ray's in-pixel position
 
     def __init__(self, quality=None, **props):
         super().__init__(quality, **props)
@@ -72,7 +78,8 @@ class PathTracePass(Pass):
         self.bvh_ms = rt.bvh_ms
         scene = rc.scene.scene
         cam = scene.camera
-        prog = rc.programs.compute("pt/pt.comp", rt.defines)
+        prog = rc.programs.compute("pt/pt.comp", dict(rt.defines, PT_DEBUG_PIXEL_POS=1)
+                                   if self.debug_pixel_positions else rt.defines)
         rt.bind(prog)
         set_uniform(prog, "u_cam_to_world", np.asarray(cam.matrix_world, np.float32))
         set_uniform(prog, "u_inv_proj", np.linalg.inv(np.asarray(cam.projection, np.float64)).astype(np.float32))
@@ -85,6 +92,8 @@ class PathTracePass(Pass):
         set_uniform(prog, "u_max_diffuse", int(self["diffuse_bounces"]))
         set_uniform(prog, "u_max_glossy", int(self["glossy_bounces"]))
         set_uniform(prog, "u_rr_start", int(self["rr_start"]))
+        seq = int(self["pixel_sequence"])
+        set_uniform(prog, "u_pixel_sequence", int(not frame.keeps_history) if seq == 2 else seq)
         res = rc.resources
         for unit, name in enumerate(self.writes):
             res[name].bind_to_image(unit, read=False, write=True)
