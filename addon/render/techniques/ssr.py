@@ -86,10 +86,10 @@ class SSRTracePass(ScreenPass):
     )
     # q0 traces at full resolution: at half resolution (measured, glossy_spheres 96 px) the
     # reflections of the curved spheres lost detail (relMSE 0.0274 vs 0.0229), for ~1 ms
-    # miss_trace and rough_trace on at every level (SSR.md, "Seventh session (F7)"): F12 renders
-    # improve every column measured (sunlit_room q1 vs full 0.07582 off -> 0.07444, below before
-    # issue 9's 0.07466; glossy_spheres q1 vs one_bounce 0.01910 -> 0.01020), and under camera
-    # motion against Cycles (corridor frames 4-12) 0.2879 off -> 0.1652 with the trace
+    # miss_trace and rough_trace on at every level (SSR.md, eighth session): F12 renders improve
+    # every column measured (sunlit_room q1 vs full 0.07582 off -> 0.07451, below before issue 9's
+    # 0.07466; glossy_spheres q1 vs one_bounce 0.0191 -> 0.0094), and under camera motion against
+    # Cycles (corridor frames 4-12) 0.2879 off -> 0.1652 with the trace
     quality_ladder = tuple({"steps": n, "scale": 1.0, "miss_trace": 1, "rough_trace": 1} for n in (32, 64, 128, 256))
     reads = (ALBEDO, NORMAL, POSITION, GEONORMAL, HIZ)
     writes = (RAY0, RAY1)
