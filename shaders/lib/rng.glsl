@@ -30,4 +30,13 @@ vec4 rng_next4(inout Rng r) {
 vec2 rng_next2(inout Rng r) { return rng_next4(r).xy; }
 float rng_next(inout Rng r) { return rng_next4(r).x; }
 
+// Halton(2,3) point i in [0,1)^2 (radical inverses; base 2 by bit reversal): a low-discrepancy
+// sequence (any 2^k consecutive indices fill every 1/2^k strip in x once, 3^k in y).
+vec2 halton23(uint i) {
+    float h2 = float(bitfieldReverse(i) >> 8u) * (1.0 / 16777216.0);
+    float h3 = 0.0, f = 1.0 / 3.0;
+    for (uint n = i; n > 0u; n /= 3u) { h3 += f * float(n % 3u); f /= 3.0; }
+    return vec2(h2, h3);
+}
+
 #endif

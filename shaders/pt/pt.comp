@@ -133,14 +133,6 @@ PathOut trace_path(vec2 pix, inout Rng rng) {
     return out_;
 }
 
-// Halton(2,3) point i in [0,1)^2 (radical inverses; base 2 by bit reversal).
-vec2 halton23(uint i) {
-    float h2 = float(bitfieldReverse(i) >> 8u) * (1.0 / 16777216.0);
-    float h3 = 0.0, f = 1.0 / 3.0;
-    for (uint n = i; n > 0u; n /= 3u) { h3 += f * float(n % 3u); f /= 3.0; }
-    return vec2(h2, h3);
-}
-
 // The in-pixel position of sample `index` of pixel px: Halton(2,3) with a per-pixel
 // Cranley-Patterson rotation (a hash of the pixel alone, so it stays fixed over frames and the
 // pixel's own positions stay stratified; neighbours do not move together).
