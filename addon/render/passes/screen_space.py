@@ -155,7 +155,11 @@ class TemporalPass(ScreenPass):
     History (double-buffered by the graph): ``output`` (the running mean), ``output.pos``
     (world position, w = history length) and ``output.nrm``, read back as ``@prev``.
     ``resets``: the events that invalidate it (default: all; an AO signal, which does not
-    depend on lights or materials, keeps its history across light and material edits)."""
+    depend on lights or materials, keeps its history across light and material edits).
+    ``f12_pass_through``: in a fresh accumulation (F12: ``frame.keeps_history`` False) output
+    each frame's signal unaccumulated, so the session's accumulator takes its plain mean
+    instead of an average of running means (which weighs the first frames most); viewport and
+    animation frames accumulate as usual. SSR's miss-trace fallback uses it (SSR.md)."""
 
     params = (
         Param("max_history", 32, 1, 1024, "frames averaged at most while the camera is still"),
@@ -163,8 +167,10 @@ class TemporalPass(ScreenPass):
     )
 
     def __init__(self, quality=None, *, source: str, output: str, background=(1.0, 1.0, 1.0, 1.0),
-                 resets=ALL_EVENTS, hit_distance: str | None = None, clamp: bool = False, **kw):
+                 resets=ALL_EVENTS, hit_distance: str | None = None, clamp: bool = False,
+                 f12_pass_through: bool = False, **kw):
         super().__init__(quality, **kw)
+        self.f12_pass_through = f12_pass_through
         self.clamp = clamp  # neighbourhood clamp of the history while the camera moves (temporal.comp HISTORY_CLAMP)
         self.source, self.output = source, output
         self.hit_distance = hit_distance  # reflections: reproject by the reflected point (temporal.comp)
@@ -199,7 +205,8 @@ class TemporalPass(ScreenPass):
               @ np.asarray(frame.view, np.float64))
         moving = self.prev_vp is not None and not np.allclose(vp, self.prev_vp, atol=1e-6)
         self.prev_vp = vp
-        set_uniform(prog, "u_reset", 0 if self.history_valid else 1)
+        fresh = self.f12_pass_through and not frame.keeps_history
+        set_uniform(prog, "u_reset", 0 if self.history_valid and not fresh else 1)
         set_uniform(prog, "u_max_history", float(self["max_history_moving"] if moving else self["max_history"]))
         if self.clamp:
             set_uniform(prog, "u_clamp", 1 if moving else 0)

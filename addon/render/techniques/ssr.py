@@ -215,12 +215,10 @@ class SSRFallbackTemporalPass(TemporalPass):
     ``ssr.fallback``: the miss trace's one ray per pixel and frame, averaged over frames like
     the found share (``ssr_temporal``). While ``trace``'s ``miss_trace`` is 0 it keeps no
     history (every frame a reset: the output is this frame's ``aov.world_spec`` unchanged),
-    and it restarts when ``miss_trace`` is switched. In a fresh accumulation (F12:
-    ``frame.keeps_history`` False) it passes each frame's fallback through as well: the
-    session's accumulator then takes the plain mean of the frames' fallbacks, where accumulating
-    here too would average running means, weighting the first frames most (glossy_spheres q1,
-    96 px, 16 frames, five seeds: relMSE vs one_bounce 0.0157 +- 0.0024 -> 0.0130 +- 0.0012;
-    SSR.md, eighth session). Viewport and animation frames keep history and accumulate here."""
+    and it restarts when ``miss_trace`` is switched. It is built with ``f12_pass_through``: in an
+    F12 render the session's accumulator takes the plain mean of the frames' fallbacks
+    (glossy_spheres q1, 96 px, 16 frames, five seeds: relMSE vs one_bounce 0.0157 +- 0.0024 ->
+    0.0130 +- 0.0012; SSR.md, eighth session)."""
 
     def __init__(self, quality=None, *, trace: SSRTracePass, **kw):
         super().__init__(quality, **kw)
@@ -230,7 +228,7 @@ class SSRFallbackTemporalPass(TemporalPass):
     def execute(self, rc, frame):
         on = int(self.trace["miss_trace"]) > 0
         valid = self.history_valid
-        if not on or on != self._was_on or not frame.keeps_history:
+        if not on or on != self._was_on:
             self.history_valid = False
         self._was_on = on
         try:
@@ -299,7 +297,7 @@ def ssr_passes(quality, *, provides=SSR_PROVIDES, fallback: str = WORLD_SPEC,
         passes.append(SSRFallbackTemporalPass(quality, name="ssr_fallback_temporal", trace=trace, source=FALLBACK,
                                               output=FALLBACK_TEMPORAL, background=(0.0, 0.0, 0.0, 1.0),
                                               provides=p, max_history=16, max_history_moving=4,
-                                              clamp=fallback_clamp,
+                                              clamp=fallback_clamp, f12_pass_through=True,
                                               hit_distance=MISS_DIST if fallback_reproject == "miss" else None))
     return passes + [CompositePass(quality, name="ssr_composite", mode="SSR", signal="ssr.temporal", provides=p,
                                    fallback=fallback, replaces=replaces)]
