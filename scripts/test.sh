@@ -7,7 +7,7 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 bash scripts/setup.sh
 
 set +e
-.venv/bin/python -m pytest blender_tests -q -rs "$@"
+.venv/bin/python -m pytest blender_tests -q -rs --durations=30 "$@"
 rc=$?
 set -e
 if [[ $rc == 5 ]]; then
