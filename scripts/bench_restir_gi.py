@@ -173,9 +173,12 @@ def motion(a, results):
     out = {}
     techs = a.motion_techniques.split(",")
     for scene in a.scenes:
-        for mo in a.motions.split(","):
+        for case in a.motions.split(","):
+            mo, _, amount = case.partition("@")  # "pan@0.04": a slow pan (amount x the distance)
             sc = D.build_demo(scene, resolution=a.res)
-            spec = A.AnimationSpec(motion=mo, move=a.motion_frames, hold=a.motion_hold, draws=a.motion_draws)
+            spec = A.AnimationSpec(motion=mo, move=a.motion_frames, hold=a.motion_hold, draws=a.motion_draws,
+                                   amount=float(amount) if amount else None)
+            mo = case.replace("@", "_")
             t0 = time.perf_counter()
             res = A.run(sc, spec, techs, reference=reference, export=export, session=Shim, width=a.res,
                         height=a.res, log=lambda m: print(m, flush=True))
@@ -231,7 +234,7 @@ def main():
     ap.add_argument("--parts", default="still,configs,demos")
     ap.add_argument("--motion-frames", type=int, default=12)
     ap.add_argument("--motion-hold", type=int, default=10)
-    ap.add_argument("--motions", default="orbit,pan")
+    ap.add_argument("--motions", default="orbit,pan", help="motions, each optionally with an amount: pan@0.04")
     ap.add_argument("--motion-techniques", default="RESTIR_GI,RESTIR_GI+SVGF,SVGF")
     ap.add_argument("--motion-draws", type=int, default=1,
                     help="independent noise draws per motion run (trail and stability: means; see animation.py)")

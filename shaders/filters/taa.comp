@@ -71,7 +71,6 @@ uniform float u_len_cap;  // history length kept through this frame (a light edi
 uniform int u_hist_fallback;  // 1: 3x3 same-surface search where no bilinear tap is usable
 uniform float u_hist_normal;  // history tap kept only if its normal . this normal > this (-1: off)
 uniform int u_edge_own;       // at geometric-edge pixels blend 1: the pixel's own sample, 2: the 3x3 same-surface binomial
-uniform float u_edge_lag;     // > 0: at geometric-edge pixels the blend weight is >= v / (v + u_edge_lag), v = max 3x3 motion
 uniform int u_recon;          // 1: this frame's value = Gaussian mix of the 3x3 samples' same-surface means
 uniform float u_recon_sigma;  // ... with sigma (pixels) of the Gaussian over the samples' distances
 uniform vec2 u_jitter;        // the frame's jitter (pixels): pixel q's G-buffer sample lies at q + 0.5 - u_jitter
@@ -225,8 +224,7 @@ void main() {
     vec3 N = normalize(texelFetch(u_gb_normal, px, 0).xyz + vec3(0.0, 0.0, 1e-12));
     vec3 m1 = vec3(0.0), m2 = vec3(0.0), same = vec3(0.0);
     float ns = 0.0;
-    bool edge = false;  // (u_edge_own, u_edge_lag) a 3x3 sample lies on another surface
-    float vmax = 0.0;   // (u_edge_lag) the fastest 3x3 motion (pixels per frame)
+    bool edge = false;  // (u_edge_own) a 3x3 sample lies on another surface
     for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
             ivec2 q = clamp(px + ivec2(dx, dy), ivec2(0), size - 1);
@@ -235,8 +233,7 @@ void main() {
             m1 += y;
             m2 += y * y;
             vec4 pq = texelFetch(u_gb_position, q, 0);
-            if (u_edge_lag > 0.0) vmax = max(vmax, length(texelFetch(u_gb_motion, q, 0).xy));
-            if (u_footprint > 0 || u_edge_own > 0 || u_edge_lag > 0.0) {  // the 3x3's surfaces (footprint 2's window, edge test)
+            if (u_footprint > 0 || u_edge_own > 0) {  // the 3x3's surfaces (footprint 2's window, edge test)
                 int kw = (dy + 1) * 3 + dx + 1;
                 g_winP[kw] = pq.xyz;
                 g_winN[kw] = normalize(texelFetch(u_gb_normal, q, 0).xyz + vec3(0.0, 0.0, 1e-12));
@@ -375,10 +372,6 @@ void main() {
         vec3 cy = clip_box(bm, e, hy);
         clipped = length(cy - hy) / (length(hy) + 1e-4);
         float a = max(u_alpha, 1.0 / len);
-        // u_edge_lag: an edge moving across the pixel at v px/frame changes its coverage at v per
-        // frame; an exponential average with weight a follows a ramp v(1 - a)/a frames behind, i.e.
-        // that many pixels of edge lag. a >= v / (v + L) keeps it within L pixels.
-        if (u_edge_lag > 0.0 && edge && vmax > 0.0) a = max(a, vmax / (vmax + u_edge_lag));
         outc = mix(max(ycocg2rgb(cy), vec3(0.0)), curf, a);
         om2 = mix(hm2, ycur * ycur, a);
     } else {

@@ -248,9 +248,6 @@ class TAAPass(_FilterPass):
         Param("edge_own", 0, 0, 2, "at geometric-edge pixels (a 3x3 sample on another surface) blend 1: the pixel's "
               "own sample (its random in-pixel position carries the coverage), 2: the 3x3 same-surface binomial, "
               "instead of the input filter"),
-        Param("edge_lag", 0.0, 0.0, 100.0, "> 0: at geometric-edge pixels under motion the current frame weighs at "
-              "least v / (v + edge_lag), v = the 3x3's fastest motion (px/frame): a moving edge's coverage then lags "
-              "by at most edge_lag pixels; 0: off"),
         Param("recon_sigma", 0.47, 0.05, 2.0, "recon: sigma in pixels (0.47 = Karis' exp(-2.29 d^2) fit of "
               "Blackman-Harris)"),
     )
@@ -297,7 +294,6 @@ class TAAPass(_FilterPass):
         set_uniform(prog, "u_alt_age", float(self["footprint_age"]))
         set_uniform(prog, "u_recon", int(self["recon"]))
         set_uniform(prog, "u_edge_own", int(self["edge_own"]))
-        set_uniform(prog, "u_edge_lag", float(self["edge_lag"]))
         set_uniform(prog, "u_recon_sigma", float(self["recon_sigma"]))
         set_uniform(prog, "u_jitter", tuple(float(x) for x in frame.jitter))
         for unit, name in enumerate(("taa.history", "taa.aux", "taa.pos", "taa.debug", "taa.alt", "taa.altn")):
