@@ -175,9 +175,13 @@ def motion(a, results):
     for scene in a.scenes:
         for case in a.motions.split(","):
             mo, _, amount = case.partition("@")  # "pan@0.04": a slow pan (amount x the distance)
+            try:
+                amount = float(amount) if amount else None
+            except ValueError:
+                raise SystemExit(f"--motions: the amount after '@' must be a number (got {case!r})") from None
             sc = D.build_demo(scene, resolution=a.res)
             spec = A.AnimationSpec(motion=mo, move=a.motion_frames, hold=a.motion_hold, draws=a.motion_draws,
-                                   amount=float(amount) if amount else None)
+                                   amount=amount)
             mo = case.replace("@", "_")
             t0 = time.perf_counter()
             res = A.run(sc, spec, techs, reference=reference, export=export, session=Shim, width=a.res,
