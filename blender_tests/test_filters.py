@@ -228,6 +228,55 @@ def test_taa_light_edit_caps_history_instead_of_restarting():
         bpy.data.scenes.remove(sc)
 
 
+@pytest.mark.parametrize("tech,param,capped,full", [("SVGF", "edge_history", 9.0, 13.0),
+                                                    ("TAA", "turned_history", 2.0, 14.0)])
+def test_sub_pixel_motion_caps_history_where_the_surface_changes(tech, param, capped, full):
+    """Sub-pixel camera motion (the Cornell slow pan, 0.22 px/frame at 48 px) caps the history of
+    the pixels whose surface may change under them (SVGF.md / TAA.md, tenth session): SVGF's
+    geometric-edge pixels at edge_history (8, + this frame), TAA's pixels whose kept history
+    mostly faces elsewhere at turned_history (1, + this frame). Read from the history-length
+    debug views against a session with the parameter at 0: identical while the camera is still,
+    after one moving frame the capped pixels are few, all at the cap, and the rest keep their
+    length; the next frame without motion caps nothing more."""
+    from gi_preview.compare import animation as A
+
+    sc, sd = build("cornell", 48)
+    view_name = "GI_SVGF_History" if tech == "SVGF" else "GI_TAA_History"
+    runs = {}
+    try:
+        for on in (True, False):
+            sess = f"cap_{tech}_{on}"
+            if not on:
+                session.set_pass_properties(sess, {tech.lower(): {param: 0.0}}, technique=tech, quality=1)
+            try:
+                lens = []
+                for _ in range(12):
+                    r = session.render(sd, tech, 1, 1, keep_history=True, warmup=False, session=sess)
+                lens.append(r.aovs[view_name][..., 0] * 32)
+                surf = r.aovs["Depth"][..., 0] < 1e9
+                dist = float(np.median(r.aovs["Depth"][..., 0][surf]))
+                m = A.camera_matrix(np.asarray(sd.camera.matrix_world), "pan", 1 / 12, 0.04, dist)
+                moved = dataclasses.replace(sd, camera=dataclasses.replace(sd.camera, matrix_world=m))
+                for _ in range(2):  # one moving frame, then the camera stays at the new pose
+                    r = session.render(moved, tech, 1, 1, keep_history=True, warmup=False, session=sess)
+                    lens.append(r.aovs[view_name][..., 0] * 32)
+                runs[on] = lens
+            finally:
+                release(sess)
+    finally:
+        bpy.data.scenes.remove(sc)
+    (still_on, move_on, after_on), (still_off, move_off, after_off) = runs[True], runs[False]
+    assert np.array_equal(still_on[surf], still_off[surf]), "a still camera caps nothing"
+    diff = surf & (np.abs(move_on - move_off) > 0.5)
+    n = int(diff.sum())
+    print(f"\n{tech} {param}: {n} of {int(surf.sum())} surface pixels capped after one 0.22-px move")
+    assert 5 <= n <= 0.4 * surf.sum(), n
+    # 13 frames of history (TAA starts a pixel from its 3x3 mean, worth 2 frames: 14)
+    assert np.allclose(move_on[diff], capped) and np.allclose(move_off[diff], full), "capped at the parameter"
+    assert np.median(move_on[surf]) == pytest.approx(full), "the rest keep their history"
+    assert np.allclose(after_on[diff], capped + 1), "no motion: the capped pixels grow again"
+
+
 def test_200_frame_animation_finite_and_bounded():
     sc, sd = build("cornell", 16)
     try:

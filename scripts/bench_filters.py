@@ -18,7 +18,7 @@ frame, the stability figure the mean over draws (per-draw values in the JSON). A
 the motion's amount after an ``@`` (``cornell:pan@0.04``: a slow pan; the summary reports the
 pan's speed in pixels per frame at the viewed distance). ``--taa-set k=v,...`` overrides TAA
 parameters for the whole run (e.g. ``history_normal=-1,history_fallback=0``: the TAA before
-the history normal test of 146b53a). ``--pt-set k=v,...`` sets path-tracer parameter defaults for
+the history normal test of 146b53a); ``--svgf-set k=v,...`` does the same for SVGF. ``--pt-set k=v,...`` sets path-tracer parameter defaults for
 every technique (e.g. ``pixel_sequence=1``: Halton in-pixel positions).
 """
 from __future__ import annotations
@@ -47,6 +47,7 @@ def main():
     ap.add_argument("--no-docs", action="store_true", help="write the case folders under /tmp instead of docs/results")
     ap.add_argument("--draws", type=int, default=1, help="independent noise draws per run (trail/stability: means)")
     ap.add_argument("--taa-set", default="", help="TAA parameter overrides k=v,... for every quality level")
+    ap.add_argument("--svgf-set", default="", help="SVGF parameter overrides k=v,... for every quality level")
     ap.add_argument("--pt-set", default="", help="path-tracer (PathTracePass) parameter defaults k=v,... for every technique")
     a = ap.parse_args()
     import gi_compare as gc
@@ -55,10 +56,13 @@ def main():
     session = importlib.import_module(pkg.__name__ + ".render.session")
     demo = importlib.import_module(pkg.__name__ + ".blender.demo_scenes")
     import bpy
-    taa_set = {k: float(v) for k, v in (kv.split("=") for kv in a.taa_set.split(",") if kv.strip())}
-    if taa_set:
-        filters = importlib.import_module(pkg.__name__ + ".render.passes.filters")
-        filters.TAAPass.quality_ladder = tuple(dict(d, **taa_set) for d in filters.TAAPass.quality_ladder)
+    filters = importlib.import_module(pkg.__name__ + ".render.passes.filters")
+    overrides = {}
+    for opt, cls in (("taa_set", filters.TAAPass), ("svgf_set", filters.SVGFPass)):
+        kv = {k: float(v) for k, v in (kv.split("=") for kv in getattr(a, opt).split(",") if kv.strip())}
+        if kv:
+            cls.quality_ladder = tuple(dict(d, **kv) for d in cls.quality_ladder)
+        overrides[opt] = kv
     pt_set = {k: float(v) for k, v in (kv.split("=") for kv in a.pt_set.split(",") if kv.strip())}
     ptm = importlib.import_module(pkg.__name__ + ".render.techniques.pt")
     if pt_set:
@@ -66,7 +70,7 @@ def main():
         ptm.PathTracePass.params = tuple(dataclasses.replace(p, default=type(p.default)(pt_set[p.name]))
                                          if p.name in pt_set else p for p in ptm.PathTracePass.params)
     summary = {"date": time.strftime("%Y-%m-%d %H:%M"), "res": a.res, "ref_spp": a.ref_spp, "draws": a.draws,
-               "taa_set": taa_set, "pt_set": pt_set, "cases": {}}
+               "taa_set": overrides["taa_set"], "svgf_set": overrides["svgf_set"], "pt_set": pt_set, "cases": {}}
     for case in a.cases.split(","):
         scene_name, motion = case.split(":")
         motion, _, amount = motion.partition("@")
@@ -109,7 +113,7 @@ def main():
         json.dump(gc._clean_json(summary), f, indent=1)
     lines = [f"# Filters under motion ({a.tag}, {summary['date']}, {a.res} px, Cycles {a.ref_spp} spp + OIDN per frame)", "",
              "Made by `scripts/bench_filters.py --tag " + a.tag + (f" --draws {a.draws}" if a.draws > 1 else "")
-             + (f" --taa-set {a.taa_set}" if a.taa_set else "") + (f" --pt-set {a.pt_set}" if a.pt_set else "") + "`. Stability = mean |frame difference| over the moving "
+             + (f" --taa-set {a.taa_set}" if a.taa_set else "") + (f" --svgf-set {a.svgf_set}" if a.svgf_set else "") + (f" --pt-set {a.pt_set}" if a.pt_set else "") + "`. Stability = mean |frame difference| over the moving "
              "frames, ours / Cycles'. Trail: error in the pixels disoccluded (relit, for a light move) over the last 8 "
              "moving frames, 8 frames after the stop, over a still camera's error on the same frame (same seeds); "
              "recovered = first held frame within 1.5x. Brightness = mean of the image / Cycles' (held frames). "

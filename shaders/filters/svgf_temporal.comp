@@ -33,6 +33,19 @@ uniform sampler2D u_hist_nrm;
 uniform int u_reset;
 uniform float u_max_history;
 uniform float u_clamp_sigma;   // 0 = no history clamp (the paper)
+uniform float u_edge_len;      // history length cap at moving geometric-edge pixels (0: off)
+
+// a 3x3 neighbour of px lies on another surface (off this pixel's plane, turned away, or background)
+bool geometric_edge(ivec2 px, ivec2 size, vec3 P, vec3 N) {
+    for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+            ivec2 q = clamp(px + ivec2(dx, dy), ivec2(0), size - 1);
+            vec4 pq = texelFetch(u_gb_position, q, 0);
+            if (pq.w < 0.0 || plane_pixels(P, N, pq.xyz) > 2.0 || dot(N, texelFetch(u_gb_normal, q, 0).xyz) < 0.9)
+                return true;
+        }
+    return false;
+}
 
 vec3 cur_illum(ivec2 q) {
     vec3 c = sanitize(texelFetch(u_color, q, 0).rgb);
@@ -63,8 +76,9 @@ void main() {
     vec3 hc = vec3(0.0);
     vec2 hm = vec2(0.0);
     float hlen = 0.0, wsum = 0.0;
+    vec2 mv = texelFetch(u_gb_motion, px, 0).xy;
     if (u_reset == 0) {
-        vec2 prev = vec2(px) + 0.5 - texelFetch(u_gb_motion, px, 0).xy - 0.5;
+        vec2 prev = vec2(px) + 0.5 - mv - 0.5;
         ivec2 b = ivec2(floor(prev));
         vec2 f = prev - vec2(b);
         for (int j = 0; j < 2; ++j)
@@ -110,6 +124,9 @@ void main() {
             if (lh > hi && lh > 0.0) hc *= hi / lh;
             else if (lh < lo) hc = lh > 1e-6 ? hc * (lo / lh) : vec3(lo);
         }
+        // u_edge_len: an edge pixel's value is its surfaces' coverage, which changes as the camera
+        // moves; at alpha = 1/32 the history trails it by ~30 frames (Cornell slow pan)
+        if (u_edge_len > 0.0 && dot(mv, mv) > 1e-8 && geometric_edge(px, size, P, N)) hlen = min(hlen, u_edge_len);
         len = min(hlen + 1.0, max(u_max_history, 1.0));
         float a = 1.0 / len;
         c = mix(hc, c, a);

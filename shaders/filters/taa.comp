@@ -79,6 +79,8 @@ uniform vec2 u_jitter;        // the frame's jitter (pixels): pixel q's G-buffer
 uniform float u_normal_motion;  // ... where the reprojection moves by more than this (pixels)
 float g_ncos = -2.0;  // the normal threshold in force for this pixel (set in main)
 bool g_moving = false;  // |motion| > u_normal_motion (set in main)
+bool g_moved = false;   // the reprojection moves at all (set in main)
+uniform float u_turned_len;  // history length cap where a sub-pixel move keeps texels facing elsewhere (0: off)
 bool hist_same_surface(bool surf, vec3 P, vec3 N, vec4 hp, vec3 hn) {
     if (!surf) return hp.w < 0.5;
     return hp.w >= 0.5 && plane_pixels(P, N, hp.xyz) <= 2.0 && dot(N, hn) > g_ncos;
@@ -135,6 +137,12 @@ const float BINOM2[5] = float[5](1.0, 4.0, 6.0, 4.0, 1.0);
 // the box must see every sample the filtered input spreads into this pixel, or the energy of
 // a rare bright sample spread over its neighbours is clipped away there (sun-lit room: 20 %).
 vec3 rgb2ycocg(vec3 c);
+// q is on this pixel's surface (for a background pixel: q is background)
+bool input_same_surface(ivec2 q, bool surf, vec3 P, vec3 N) {
+    vec4 pq = texelFetch(u_gb_position, q, 0);
+    return surf ? (pq.w >= 0.0 && plane_pixels(P, N, pq.xyz) <= 2.0
+                   && dot(N, texelFetch(u_gb_normal, q, 0).xyz) > 0.9) : pq.w < 0.0;
+}
 vec3 filtered_input(ivec2 px, ivec2 size, bool surf, vec3 P, vec3 N, int r, out vec3 bmean, out vec3 bsig) {
     vec3 sum = vec3(0.0), b1 = vec3(0.0), b2 = vec3(0.0);
     float ws = 0.0, nb = 0.0;
@@ -146,10 +154,7 @@ vec3 filtered_input(ivec2 px, ivec2 size, bool surf, vec3 P, vec3 N, int r, out 
             b1 += yq;
             b2 += yq * yq;
             nb += 1.0;
-            vec4 pq = texelFetch(u_gb_position, q, 0);
-            bool ok = surf ? (pq.w >= 0.0 && plane_pixels(P, N, pq.xyz) <= 2.0
-                              && dot(N, texelFetch(u_gb_normal, q, 0).xyz) > 0.9) : pq.w < 0.0;
-            if (!ok) continue;
+            if (!input_same_surface(q, surf, P, N)) continue;
             float g = r == 1 ? BINOM1[dx + 1] * BINOM1[dy + 1] : BINOM2[dx + 2] * BINOM2[dy + 2];
             sum += g * sanitize(texelFetch(u_color, q, 0).rgb);
             ws += g;
@@ -157,6 +162,43 @@ vec3 filtered_input(ivec2 px, ivec2 size, bool surf, vec3 P, vec3 N, int r, out 
     bmean = b1 / max(nb, 1.0);
     bsig = sqrt(max(b2 / max(nb, 1.0) - bmean * bmean, vec3(0.0)));
     return ws > 0.0 ? sum / ws : sanitize(texelFetch(u_color, px, 0).rgb);
+}
+
+// Thin surfaces (u_thin_neff > 0): a face a pixel or two wide (seen edge-on, revealed by a
+// pan) has few same-surface samples in the 5x5: the effective sample count (sum g)^2 / sum g^2
+// of the 5x5 binomial's same-surface weights is 3.7 for a 1-px column, 13.4 inside a face. So
+// while its history is young its input is ~2x noisier than a face's; there the young input is
+// the plain mean of the same-surface samples of the (2 u_thin_radius + 1)^2 box.
+uniform float u_thin_neff;
+uniform int u_thin_radius;
+float surface_neff(ivec2 px, ivec2 size, bool surf, vec3 P, vec3 N) {
+    float ws = 0.0, ws2 = 0.0;
+    for (int dy = -2; dy <= 2; ++dy)
+        for (int dx = -2; dx <= 2; ++dx) {
+            ivec2 q = px + ivec2(dx, dy);
+            if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
+            if (!input_same_surface(q, surf, P, N)) continue;
+            float g = BINOM2[dx + 2] * BINOM2[dy + 2];
+            ws += g;
+            ws2 += g * g;
+        }
+    return ws2 > 0.0 ? ws * ws / ws2 : 0.0;
+}
+bool thin_surface(ivec2 px, ivec2 size, bool surf, vec3 P, vec3 N) {
+    return u_thin_neff > 0.0 && surface_neff(px, size, surf, P, N) < u_thin_neff;
+}
+vec3 thin_input(ivec2 px, ivec2 size, bool surf, vec3 P, vec3 N, int r) {
+    vec3 sum = vec3(0.0);
+    float n = 0.0;
+    for (int dy = -r; dy <= r; ++dy)
+        for (int dx = -r; dx <= r; ++dx) {
+            ivec2 q = px + ivec2(dx, dy);
+            if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
+            if (!input_same_surface(q, surf, P, N)) continue;
+            sum += sanitize(texelFetch(u_color, q, 0).rgb);
+            n += 1.0;
+        }
+    return n > 0.0 ? sum / n : sanitize(texelFetch(u_color, px, 0).rgb);
 }
 
 // Current-frame reconstruction (u_recon = 1; Karis 2014's filtered current sample): the sample
@@ -252,7 +294,7 @@ void main() {
     float ycur = luminance(cur);
 
     vec3 hc = vec3(0.0);
-    float hlen = 0.0, hm2 = 0.0, wsum = 0.0;
+    float hlen = 0.0, hm2 = 0.0, wsum = 0.0, turned = 0.0;
     vec4 oalt = vec4(0.0);
     vec3 oaltn = vec3(0.0);
     if (u_reset == 0) {
@@ -261,6 +303,7 @@ void main() {
         bool moving = length(mv) > u_normal_motion;
         if (moving) g_ncos = u_hist_normal;
         g_moving = moving;
+        g_moved = dot(mv, mv) > 1e-8;
         // this pixel's record B, from the history texel nearest to the reprojected centre: if
         // this sample is on that texel's record A, its B ages by a frame; otherwise (this sample
         // is on its B, or on neither: the first sample of a new surface in the footprint) the
@@ -299,6 +342,7 @@ void main() {
                 if (!(finite4(h) && finite4(ha) && finite4(hp)) || h.a < 1.0) continue;
                 if (tap_record(t, surf, P, N, hp, ha.yzw) == 0) continue;
                 float w = (i == 0 ? 1.0 - f.x : f.x) * (j == 0 ? 1.0 - f.y : f.y);
+                if (g_moved && !g_moving && surf && dot(N, ha.yzw) <= u_hist_normal) turned += w;
                 hc += w * max(h.rgb, vec3(0.0));
                 hlen += w * h.a;
                 hm2 += w * max(ha.x, 0.0);
@@ -353,12 +397,21 @@ void main() {
         hc /= wsum;
         hlen /= wsum;
         hm2 /= wsum;
+        // u_turned_len: a sub-pixel move keeps the plane test only (normal_motion), so a face
+        // revealed edge-on can inherit the texels of the surface it meets (the plane test passes
+        // near their common edge): where most of the history faces elsewhere it is followed at
+        // >= 1/u_turned_len per frame instead of alpha
+        if (u_turned_len > 0.0 && turned > 0.5 * wsum) hlen = min(hlen, u_turned_len);
         len = min(min(hlen, u_len_cap) + 1.0, max(u_max_history, 1.0));
         // young history (running mean, weight 1/len per frame): the wider 5x5 filter, so a
         // disoccluded pixel's early frames do not leave their noise in it for the next ~10 frames
         vec3 bm = m1, bs = sig;
         vec3 curf = cur;
-        if (u_input_filter == 1) curf = filtered_input(px, size, surf, P, N, len <= u_young ? 2 : u_radius, bm, bs);
+        if (u_input_filter == 1) {
+            curf = filtered_input(px, size, surf, P, N, len <= u_young ? 2 : u_radius, bm, bs);
+            if (len <= u_young && thin_surface(px, size, surf, P, N))
+                curf = thin_input(px, size, surf, P, N, u_thin_radius);
+        }
         if (u_recon == 1) curf = recon_input(px, size, len <= u_young ? 2 : u_radius);
         // u_edge_own: at a geometric edge this pixel's own sample is the only one whose (random,
         // box-distributed) position lies in its footprint: the same-surface filter would dilute the
@@ -379,6 +432,8 @@ void main() {
         // (3x3 mean without the input filter)
         vec3 bm, bs;
         outc = u_input_filter == 1 ? filtered_input(px, size, surf, P, N, 2, bm, bs) : (ns > 0.0 ? same / ns : cur);
+        if (u_input_filter == 1 && thin_surface(px, size, surf, P, N))
+            outc = thin_input(px, size, surf, P, N, u_thin_radius);
         if (u_recon == 1) outc = recon_input(px, size, 2);
         len = ns >= 4.0 ? 2.0 : 1.0;
         om2 = ycur * ycur;

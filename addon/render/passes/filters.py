@@ -160,6 +160,10 @@ class SVGFPass(_FilterPass):
               "temporal sigma); 0 = off (the paper)"),
         Param("pair_variance", 0, 0, 1, "luminance weight from the pair's variance (symmetric: keeps the energy of "
               "bright outliers); 0 = the centre's (the paper)"),
+        # edge_history 8 (tenth session): Cornell slow pan trail 1.59x -> 1.44x the still level (8 draws, paired
+        # -0.13 +- 0.02), every case's stability +0.01..0.09 (all < 2x), moving relMSE +5 %. docs/techniques/SVGF.md
+        Param("edge_history", 8.0, 0.0, 1024.0, "history length cap at geometric-edge pixels (a 3x3 neighbour on "
+              "another surface) while the reprojection moves: their coverage changes (0: off)"),
     )
     quality_ladder = ({"iterations": 3}, {"iterations": 4}, {"iterations": 5}, {"iterations": 6})
 
@@ -177,6 +181,7 @@ class SVGFPass(_FilterPass):
         set_uniform(prog, "u_reset", 0 if (self.history_valid and not frame.camera_cut) else 1)
         set_uniform(prog, "u_max_history", float(self["max_history"]))
         set_uniform(prog, "u_clamp_sigma", float(self["clamp_sigma"]))
+        set_uniform(prog, "u_edge_len", float(self["edge_history"]))
         for unit, name in enumerate(("svgf.a", "svgf.moments", "svgf.pos", "svgf.nrm", "svgf.dbg_var", "svgf.dbg_len")):
             res[name].bind_to_image(unit, read=False, write=True)
         self._run(rc, prog)
@@ -231,6 +236,15 @@ class TAAPass(_FilterPass):
         # 0.0239); the Cornell pan's grazing face (0.67 px/frame) keeps the normal test. docs/techniques/TAA.md
         Param("normal_motion", 0.5, 0.0, 100.0, "history_normal applies where the reprojection moves by more "
               "than this (pixels)"),
+        # turned_history + thin_neff (tenth session): a slow pan reveals a face edge-on, one pixel wide, whose
+        # history is the neighbouring wall's (the plane test passes near their common edge): cap that history
+        # and give the young, thin face a wider same-surface input. Cornell pan at 0.22 px/frame, 16 paired
+        # draws: trail 1.78x -> 1.38x the still level; stability costs 1.65x -> 1.72x (sun-lit pan). TAA.md C10
+        Param("turned_history", 1.0, 0.0, 1024.0, "history length cap where a move below normal_motion keeps "
+              "history texels whose normal fails history_normal (0: off)"),
+        Param("thin_neff", 6.0, 0.0, 25.0, "thin surfaces: where the 5x5 same-surface binomial has fewer effective "
+              "samples than this, a young history's input is the same-surface mean of a wider box (0: off)"),
+        Param("thin_radius", 4, 2, 8, "thin surfaces: radius of that box"),
         Param("history_fallback", 1, 0, 1, "1: where no bilinear history tap is on the pixel's surface, the "
               "same-surface texels of the 3x3 around the reprojected point"),
         Param("light_history", 2, 0, 1024, "a light edit caps the history length at this (0: restarts the "
@@ -288,6 +302,9 @@ class TAAPass(_FilterPass):
         set_uniform(prog, "u_hist_normal", float(self["history_normal"]))
         set_uniform(prog, "u_hist_fallback", int(self["history_fallback"]))
         set_uniform(prog, "u_normal_motion", float(self["normal_motion"]))
+        set_uniform(prog, "u_turned_len", float(self["turned_history"]))
+        set_uniform(prog, "u_thin_neff", float(self["thin_neff"]))
+        set_uniform(prog, "u_thin_radius", int(self["thin_radius"]))
         soft = "lights" in frame.scene_edits and int(self["light_history"]) > 0
         set_uniform(prog, "u_len_cap", float(self["light_history"]) if soft else 1e9)
         set_uniform(prog, "u_footprint", int(self["footprint"]))
