@@ -27,6 +27,12 @@ float plane_pixels(vec3 P, vec3 N, vec3 Q) {
     return abs(dot(N, Q - P)) * pixels_per_unit(view_depth(P));
 }
 
+// G-buffer texel (position pq, w < 0: background; normal nq) on the surface of the pixel at P
+// with normal N: within 2 pixel footprints of its tangent plane and normal within ~25 degrees
+bool same_surface_texel(vec3 P, vec3 N, vec4 pq, vec3 nq) {
+    return pq.w >= 0.0 && plane_pixels(P, N, pq.xyz) <= 2.0 && dot(N, nq) > 0.9;
+}
+
 // B3-spline 5-tap kernel of the à-trous wavelet (Dammertz et al. 2010)
 const float ATROUS_H[5] = float[5](1.0 / 16.0, 1.0 / 4.0, 3.0 / 8.0, 1.0 / 4.0, 1.0 / 16.0);
 

@@ -40,8 +40,7 @@ bool geometric_edge(ivec2 px, ivec2 size, vec3 P, vec3 N) {
     for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
             ivec2 q = clamp(px + ivec2(dx, dy), ivec2(0), size - 1);
-            vec4 pq = texelFetch(u_gb_position, q, 0);
-            if (pq.w < 0.0 || plane_pixels(P, N, pq.xyz) > 2.0 || dot(N, texelFetch(u_gb_normal, q, 0).xyz) < 0.9)
+            if (!same_surface_texel(P, N, texelFetch(u_gb_position, q, 0), texelFetch(u_gb_normal, q, 0).xyz))
                 return true;
         }
     return false;

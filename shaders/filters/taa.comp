@@ -140,8 +140,7 @@ vec3 rgb2ycocg(vec3 c);
 // q is on this pixel's surface (for a background pixel: q is background)
 bool input_same_surface(ivec2 q, bool surf, vec3 P, vec3 N) {
     vec4 pq = texelFetch(u_gb_position, q, 0);
-    return surf ? (pq.w >= 0.0 && plane_pixels(P, N, pq.xyz) <= 2.0
-                   && dot(N, texelFetch(u_gb_normal, q, 0).xyz) > 0.9) : pq.w < 0.0;
+    return surf ? same_surface_texel(P, N, pq, texelFetch(u_gb_normal, q, 0).xyz) : pq.w < 0.0;
 }
 vec3 filtered_input(ivec2 px, ivec2 size, bool surf, vec3 P, vec3 N, int r, out vec3 bmean, out vec3 bsig) {
     vec3 sum = vec3(0.0), b1 = vec3(0.0), b2 = vec3(0.0);
