@@ -34,6 +34,7 @@ uniform int u_reset;
 uniform float u_max_history;
 uniform float u_clamp_sigma;   // 0 = no history clamp (the paper)
 uniform float u_edge_len;      // history length cap at moving geometric-edge pixels (0: off)
+uniform float u_len_cap;       // history length cap of this frame (a light edit: light_history; else 1e9)
 
 // a 3x3 neighbour of px lies on another surface (off this pixel's plane, turned away, or background)
 bool geometric_edge(ivec2 px, ivec2 size, vec3 P, vec3 N) {
@@ -126,7 +127,7 @@ void main() {
         // u_edge_len: an edge pixel's value is its surfaces' coverage, which changes as the camera
         // moves; at alpha = 1/32 the history trails it by ~30 frames (Cornell slow pan)
         if (u_edge_len > 0.0 && dot(mv, mv) > 1e-8 && geometric_edge(px, size, P, N)) hlen = min(hlen, u_edge_len);
-        len = min(hlen + 1.0, max(u_max_history, 1.0));
+        len = min(min(hlen, u_len_cap) + 1.0, max(u_max_history, 1.0));
         float a = 1.0 / len;
         c = mix(hc, c, a);
         mom = mix(hm, mom, a);
