@@ -44,6 +44,11 @@ DENOISERS = ("NONE", "ATROUS", "SVGF")
 FILTER_RESETS = frozenset({CAMERA_CUT, PARAM_CHANGE, "geometry", "materials", "lights", "textures"})
 
 
+# A temporal filter's history through a light edit (TAA and SVGF; see _set_history_uniforms)
+LIGHT_HISTORY = Param("light_history", 2, 0, 1024, "a light edit caps the history length at this (0: restarts the "
+                      "history)")
+
+
 class _FilterPass(Pass):
     kind = "compute"
     provides = frozenset()
@@ -51,6 +56,15 @@ class _FilterPass(Pass):
 
     def _run(self, rc, prog):
         rc.dispatch(prog, *rc.groups(8))
+
+    def _set_history_uniforms(self, prog, frame):
+        """u_reset and u_len_cap of a temporal filter that keeps its history through a light
+        edit (``lights`` not in its ``history_resets``): a light edit caps the history length at
+        ``light_history`` (0: restarts the history, as a reset would)."""
+        light_edit = "lights" in frame.scene_edits
+        light_reset = light_edit and int(self["light_history"]) <= 0
+        set_uniform(prog, "u_reset", 0 if (self.history_valid and not frame.camera_cut and not light_reset) else 1)
+        set_uniform(prog, "u_len_cap", float(self["light_history"]) if light_edit and not light_reset else 1e9)
 
     def _atrous(self, rc, frame, src, dst_a, dst_b, iterations, mode, sigma_c, sigma_n, sigma_p,
                 feedback=None, halve_sigma=False, pair_var=0):
@@ -165,10 +179,9 @@ class SVGFPass(_FilterPass):
         Param("edge_history", 8.0, 0.0, 1024.0, "history length cap at geometric-edge pixels (a 3x3 neighbour on "
               "another surface) while the reprojection moves: their coverage changes (0: off)"),
         # light_history 2 (tenth session; a restart before): the moving sun's held relMSE 0.039 -> 0.019, flicker
-        # 1.58x -> 0.92x Cycles', trail 2.33x -> 1.72x (16 paired draws); the price is a 2-frame lag while the
+        # 1.58x -> 0.92x Cycles', trail 2.63x -> 1.90x (16 paired draws); the price is a 2-frame lag while the
         # light moves (relMSE moving: median equal, mean +18 %). As TAA's. docs/techniques/SVGF.md
-        Param("light_history", 2, 0, 1024, "a light edit caps the history length at this (0: restarts the "
-              "history)"),
+        LIGHT_HISTORY,
     )
     quality_ladder = ({"iterations": 3}, {"iterations": 4}, {"iterations": 5}, {"iterations": 6})
 
@@ -183,10 +196,7 @@ class SVGFPass(_FilterPass):
                           ("u_hist_moments", "svgf.moments@prev"), ("u_hist_pos", "svgf.pos@prev"),
                           ("u_hist_nrm", "svgf.nrm@prev")):
             units.tex(prog, uni, res[name])
-        light_edit = "lights" in frame.scene_edits
-        light_reset = light_edit and int(self["light_history"]) <= 0
-        set_uniform(prog, "u_reset", 0 if (self.history_valid and not frame.camera_cut and not light_reset) else 1)
-        set_uniform(prog, "u_len_cap", float(self["light_history"]) if light_edit and not light_reset else 1e9)
+        self._set_history_uniforms(prog, frame)
         set_uniform(prog, "u_max_history", float(self["max_history"]))
         set_uniform(prog, "u_clamp_sigma", float(self["clamp_sigma"]))
         set_uniform(prog, "u_edge_len", float(self["edge_history"]))
@@ -255,8 +265,7 @@ class TAAPass(_FilterPass):
         Param("thin_radius", 4, 2, 8, "thin surfaces: radius of that box"),
         Param("history_fallback", 1, 0, 1, "1: where no bilinear history tap is on the pixel's surface, the "
               "same-surface texels of the 3x3 around the reprojected point"),
-        Param("light_history", 2, 0, 1024, "a light edit caps the history length at this (0: restarts the "
-              "history)"),
+        LIGHT_HISTORY,
         Param("motion_jitter", 0, 0, 1, "1: frames that keep history are jittered too (the session's running R2 "
               "index), so a moving camera is anti-aliased; 0: only warm-up and still accumulation"),
         Param("footprint", 0, 0, 2, "1: a history texel also keeps the other surface its footprint's (jittered) "
@@ -297,9 +306,7 @@ class TAAPass(_FilterPass):
                           ("u_hist_pos", "taa.pos@prev"), ("u_gb_motion", MOTION), ("u_gb_position", POSITION),
                           ("u_gb_normal", NORMAL), ("u_hist_alt", "taa.alt@prev"), ("u_hist_altn", "taa.altn@prev")):
             units.tex(prog, uni, res[name])
-        # light edits: restart (light_history 0) or cap the history length (below)
-        light_reset = "lights" in frame.scene_edits and int(self["light_history"]) <= 0
-        set_uniform(prog, "u_reset", 0 if (self.history_valid and not frame.camera_cut and not light_reset) else 1)
+        self._set_history_uniforms(prog, frame)  # light edits: restart or cap the history length
         set_uniform(prog, "u_alpha", float(self["alpha"]))
         set_uniform(prog, "u_gamma", float(self["gamma"]))
         set_uniform(prog, "u_max_history", float(self["max_history"]))
@@ -313,8 +320,6 @@ class TAAPass(_FilterPass):
         set_uniform(prog, "u_turned_len", float(self["turned_history"]))
         set_uniform(prog, "u_thin_neff", float(self["thin_neff"]))
         set_uniform(prog, "u_thin_radius", int(self["thin_radius"]))
-        soft = "lights" in frame.scene_edits and int(self["light_history"]) > 0
-        set_uniform(prog, "u_len_cap", float(self["light_history"]) if soft else 1e9)
         set_uniform(prog, "u_footprint", int(self["footprint"]))
         set_uniform(prog, "u_alt_age", float(self["footprint_age"]))
         set_uniform(prog, "u_recon", int(self["recon"]))
