@@ -59,7 +59,18 @@ def main():
     filters = importlib.import_module(pkg.__name__ + ".render.passes.filters")
     overrides = {}
     for opt, cls in (("taa_set", filters.TAAPass), ("svgf_set", filters.SVGFPass)):
-        kv = {k: float(v) for k, v in (kv.split("=") for kv in getattr(a, opt).split(",") if kv.strip())}
+        names = {p.name for p in cls.params}
+        kv = {}
+        for item in (x.strip() for x in getattr(a, opt).split(",")):
+            if not item:
+                continue
+            k, eq, v = item.partition("=")
+            if not eq or k not in names:
+                ap.error(f"--{opt.replace('_', '-')} {item!r}: expected k=v with k one of {sorted(names)}")
+            try:
+                kv[k] = float(v)
+            except ValueError:
+                ap.error(f"--{opt.replace('_', '-')} {item!r}: {v!r} is not a number")
         if kv:
             cls.quality_ladder = tuple(dict(d, **kv) for d in cls.quality_ladder)
         overrides[opt] = kv
