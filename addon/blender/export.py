@@ -23,12 +23,14 @@ freed with ``to_mesh_clear``.
 from __future__ import annotations
 
 import math
+import subprocess
 
 import bpy
 import numpy as np
 
 from ..render.scene_data import (AreaShape, Camera, Instance, Light, LightType, Material,
                                  Mesh, SceneData, SceneError, Texture, World)
+from ..render.world_map import world_map_of
 
 __all__ = ["export_scene", "SceneExporter", "instance_id", "DEFAULT_MATERIAL_NAME"]
 
@@ -443,23 +445,29 @@ class _Exporter:
             self.data.world = World()  # no surface: Cycles renders black
             return
         node = found[0]
-        reason = None
-        if node.bl_idname != "ShaderNodeBackground":
-            reason = f"node '{node.name}' ({node.bl_idname}) on 'Surface' is not supported"
-        else:
-            for name in ("Color", "Strength"):
-                src = _follow(node.inputs[name])
-                if src is not None:
-                    reason = (f"node '{src[0].name}' ({src[0].bl_idname}) on '{name}' "
-                              "is not supported")
-                    break
-        if reason is None:
+        if node.bl_idname == "ShaderNodeBackground" and all(
+                _follow(node.inputs[n]) is None for n in ("Color", "Strength")):
             col = np.array(_rgb(node.inputs["Color"].default_value), np.float32)
             self.data.world = World(color=col * np.float32(node.inputs["Strength"].default_value))
             return
-        msg = f"World '{wo.name}': {reason}; using the viewport colour"
-        self.warn(msg)
-        self.data.world = World(color=fallback_color, exact=False, warnings=[msg])
+        # anything else: Cycles evaluates the tree into an equirectangular map, once
+        from . import world_bake
+
+        warnings = []
+        try:
+            px = world_bake.bake_world(wo)
+        except (RuntimeError, OSError, subprocess.SubprocessError) as exc:
+            msg = f"World '{wo.name}': {exc}; using the viewport colour"
+            self.warn(msg)
+            self.data.world = World(color=fallback_color, exact=False, warnings=[msg])
+            return
+        if world_bake.uses_light_path(wo):
+            warnings.append(f"World '{wo.name}': the Light Path node is evaluated as camera rays see it; "
+                            "light from the world may differ from Cycles")
+            for w in warnings:
+                self.warn(w)
+        mean = world_map_of_pixels(px)
+        self.data.world = World(color=mean, exact=not warnings, warnings=warnings, map=px, source="cycles")
 
     # -------------------------------------------------------------- camera
     def camera(self, scene, cam_ob, width: int, height: int) -> None:
@@ -481,6 +489,11 @@ class _Exporter:
         self.data.camera = Camera(name=cam_ob.name, matrix_world=_matrix(ev.matrix_world),
                                   projection=_matrix(proj), type=cd.type,
                                   clip_start=float(cd.clip_start), clip_end=float(cd.clip_end))
+
+
+def world_map_of_pixels(px: np.ndarray) -> np.ndarray:
+    """The solid-angle mean radiance of an equirectangular map (the world's uniform colour)."""
+    return np.asarray(world_map_of(World(map=px)).mean, np.float32)
 
 
 _NO_ID = 2147483647  # unused slots of DepsgraphObjectInstance.persistent_id

@@ -443,7 +443,20 @@ class RenderContext:
 
     # -------------------------------------------------------------- dispatch
     def dispatch(self, program, groups_x: int, groups_y: int = 1, groups_z: int = 1):
+        inv = self._inv_view_proj()
+        if inv is not None:  # lib/world.glsl's camera rays (the background), where declared
+            from .gpu_scene import set_uniform
+
+            set_uniform(program, "u_inv_view_proj", inv)
         program.run(max(1, groups_x), max(1, groups_y), max(1, groups_z))
+
+    def _inv_view_proj(self):
+        """Inverse of the current frame's (jittered) view-projection, or None."""
+        f = getattr(self, "frame", None)
+        if f is None or f.view is None or f.proj is None:
+            return None
+        vp = np.asarray(f.proj, np.float64) @ np.asarray(f.view, np.float64)
+        return np.linalg.inv(vp).astype(np.float32)
 
     def groups(self, local: int = 8) -> tuple[int, int]:
         return (self.width + local - 1) // local, (self.height + local - 1) // local
@@ -787,6 +800,7 @@ class FrameGraph:
         if self._plan is None:
             raise RuntimeError("FrameGraph.execute before plan()")
         self.allocate(rc)
+        rc.frame = frame
         for p in self._plan.active:  # history: last frame's writes become @prev
             for h in p.history:
                 rc.swap_history(h)

@@ -14,6 +14,7 @@ import logging
 import numpy as np
 
 from .scene_data import AreaShape, LightType, SceneData, SceneError
+from .world_map import WorldGPU
 
 log = logging.getLogger(__name__)
 
@@ -219,6 +220,7 @@ class GPUScene:
         self.light_buf = None
         self.emitter_buf = None
         self.textures = None
+        self.world = WorldGPU(ctx)
         self.scene: SceneData | None = None
         self.emitters: EmitterSet | None = None
         self.light_count = 0
@@ -335,6 +337,8 @@ class GPUScene:
             self._replace("emitter_buf", self.emitters.array)
             self._fp["lights"] = fp_l
             changes["lights"] = True
+        if self.world.update(scene.world):
+            changes["lights"] = True  # the world is a light (its map and sampling tables)
         self.light_count = len(scene.lights) + len(self.emitters.groups)
         self.emitter_count = self.emitters.count
         self.light_array = lights
@@ -382,6 +386,8 @@ class GPUScene:
         set_uniform(prog, "u_light_count", self.light_count)
         set_uniform(prog, "u_emitter_count", self.emitter_count)
         set_uniform(prog, "u_material_count", len(self.scene.materials) if self.scene else 0)
+        if self.scene is not None:
+            self.world.bind(prog, self.scene.world)
 
     def vao(self, key: str, prog):
         vk = (key, prog.glo)
@@ -440,6 +446,7 @@ class GPUScene:
             if obj is not None:
                 obj.release()
                 setattr(self, attr, None)
+        self.world.release()
         self._vaos.clear()
         self._vbos.clear()
         self._fp.clear()

@@ -26,6 +26,7 @@ import numpy as np
 
 from .bvh import SceneBVH
 from .scene_data import LightType, SceneError
+from .world_map import world_map_of
 
 # What GL guarantees when the driver does not say (OpenGL 4.3: at least 2^27 bytes).
 GL_MIN_SSBO_BLOCK = 1 << 27
@@ -153,17 +154,28 @@ def instance_key(scene) -> str:
                                     for i in scene.instances), digest_size=16).hexdigest()
 
 
-def light_selection(scene, light_array: np.ndarray, count: int) -> np.ndarray:
-    """Selection probabilities proportional to power (suns: irradiance x the scene's
-    cross-section), as [cdf..., prob...] (the first 2n floats of scene_rt.glsl's table)."""
+def _selection_weights(scene, light_array: np.ndarray, count: int) -> tuple[np.ndarray, float]:
+    """Unnormalised selection weights of the lights (power; suns: irradiance x the scene's
+    cross-section) and the scene radius they use."""
     n = int(count)
-    if n == 0:
-        return np.zeros(2, np.float32)
     lo, hi = scene.world_bounds()
     radius = max(float(np.linalg.norm(hi - lo)) * 0.5, 1e-3)
+    if n == 0:
+        return np.zeros(0), radius
     typ = np.rint(light_array[:n, 3]).astype(int)
     w = np.maximum(light_array[:n, 11].astype(np.float64), 0.0)
     w = np.where(typ == int(LightType.SUN), w * np.pi * radius * radius, w)
+    return w, radius
+
+
+def light_selection(scene, light_array: np.ndarray, count: int) -> np.ndarray:
+    """Selection probabilities among the lights proportional to power (suns: irradiance x
+    the scene's cross-section), as [cdf..., prob...] (the first 2n floats of scene_rt.glsl's
+    table)."""
+    n = int(count)
+    if n == 0:
+        return np.zeros(2, np.float32)
+    w, _ = _selection_weights(scene, light_array, count)
     if w.sum() <= 0:
         w[:] = 1.0
     prob = w / w.sum()
@@ -172,8 +184,23 @@ def light_selection(scene, light_array: np.ndarray, count: int) -> np.ndarray:
     return np.concatenate([cdf, prob]).astype(np.float32)
 
 
+def world_selection(scene, light_array: np.ndarray, count: int) -> float:
+    """Probability that next-event estimation picks the world map rather than a light: the
+    world's share of the selection weights (0 for a uniform world, which BSDF rays find)."""
+    wm = world_map_of(scene.world)
+    if wm is None:
+        return 0.0
+    w, radius = _selection_weights(scene, light_array, count)
+    ww = wm.power_weight(radius)
+    if ww <= 0.0:
+        return 0.0
+    total = float(w.sum()) + ww
+    return float(np.clip(ww / total, 0.05, 1.0)) if int(count) > 0 else 1.0
+
+
 def light_table(scene, light_array: np.ndarray, count: int, emitter_groups) -> np.ndarray:
-    """scene_rt.glsl's RtLightSelect buffer: [cdf (n), prob (n), mesh light per instance]."""
+    """scene_rt.glsl's RtLightSelect buffer: [cdf (n), prob (n), mesh light per instance,
+    the world map's sampling tables (map worlds)]."""
     sel = light_selection(scene, light_array, count)
     inst = np.full(max(len(scene.instances), 1), -1.0, np.float32)
     first_mesh_light = int(count) - len(emitter_groups)
@@ -181,7 +208,16 @@ def light_table(scene, light_array: np.ndarray, count: int, emitter_groups) -> n
         inst[int(g["instance"])] = first_mesh_light + gi
     if int(count) == 0:
         sel = np.zeros(0, np.float32)
-    return np.concatenate([sel, inst]).astype(np.float32)
+    parts = [sel, inst]
+    wm = world_map_of(scene.world)
+    if wm is not None:
+        parts.append(wm.table())
+    return np.concatenate(parts).astype(np.float32)
+
+
+def world_table_offset(scene, count: int) -> int:
+    """Where the world's tables start in light_table's buffer."""
+    return (2 * int(count) if int(count) else 0) + max(len(scene.instances), 1)
 
 
 def check_triangle_budget(scene, limit: int) -> None:
@@ -212,6 +248,7 @@ class SceneRT:
         self.bindings = dict(RT_BINDINGS, **(bindings or {}))
         self.buffers: RtBuffers | None = None
         self._select_buf = None
+        self.world_select = 0.0
         self._geo_key = self._inst_key = self._light_key = None
         self._version = None
         self._scene = None
@@ -256,6 +293,7 @@ class SceneRT:
             self._select_buf = self.ctx.buffer(data)
         else:
             self._select_buf.write(data)
+        self.world_select = world_selection(scene, gs.light_array, gs.light_count)
         self._version, self._scene = gs.version, scene
         return self
 
@@ -275,7 +313,11 @@ class SceneRT:
         gs.bind(prog, texture_unit)
         self.buffers.bind()
         self._select_buf.bind_to_storage_buffer(self.bindings["light_select"])
-        set_uniform(prog, "u_rt_world", tuple(float(x) for x in gs.scene.world.color))
+        scene = gs.scene
+        wm = world_map_of(scene.world)
+        set_uniform(prog, "u_world_select", self.world_select)
+        set_uniform(prog, "u_world_table", world_table_offset(scene, gs.light_count))
+        set_uniform(prog, "u_world_grid", tuple(int(x) for x in (wm.grid if wm is not None else (1, 1))))
 
     @property
     def nbytes(self) -> int:

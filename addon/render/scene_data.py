@@ -207,11 +207,21 @@ class Camera:
 
 @dataclass
 class World:
-    """Uniform world background: radiance = colour * strength (W/(m^2 sr))."""
+    """The world: background and light, radiance in W/(m^2 sr).
+
+    ``map`` is None for a uniform world (radiance ``color``: a Background node's colour x
+    strength). Otherwise it is the world's radiance over all directions as an
+    equirectangular float image (H, W, 3), row 0 at the bottom, in the convention of
+    Blender's Environment Texture (``render/world_map.py``), and ``color`` is its
+    solid-angle mean (what passes that treat the world as uniform use). ``source`` says how
+    it was obtained: ``"uniform"``, ``"environment"`` (an Environment Texture read
+    directly) or ``"cycles"`` (any other node tree, evaluated by Cycles)."""
 
     color: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))
     exact: bool = True
     warnings: list[str] = field(default_factory=list)
+    map: np.ndarray | None = None
+    source: str = "uniform"
 
 
 @dataclass

@@ -3,9 +3,12 @@
 // Diffuse: exact (point/sphere/sun cosine law; polygon irradiance for area lights and
 // emissive triangles). Glossy: Monte Carlo with multiple importance sampling (light
 // sampling + GGX visible-normal sampling, power heuristic), converging over frames.
-// The world: background, and a light like any other (as in Cycles' "direct" reference):
-// uniform radiance times the lobes' albedos, shadowed by the world visibility from the
-// orthographic maps the shadow pass renders along sampled directions each frame.
+// The world: background, and a light like any other (as in Cycles' "direct" reference): its
+// irradiance at the normal (lib/world.glsl: exact for a uniform world, order-2 SH for a map)
+// times the diffuse albedo, its radiance prefiltered around the glossy lobe's dominant
+// direction times the specular albedo, each shadowed by the world visibility from the
+// orthographic maps the shadow pass renders along directions sampled each frame (by the
+// map's luminance for a world map, so the visibility is weighted by where the light comes from).
 // Reads the G-buffer; writes color, GI_Direct, Emit and the world's glossy term (for SSR).
 //
 // Many lights (docs/techniques/DIRECT.md): each pixel shades the lights of its 16x16 tile's
@@ -26,6 +29,7 @@
 #include "lib/lights.glsl"
 #include "lib/shadows.glsl"
 #include "lib/albedo.glsl"
+#include "lib/world.glsl"
 #ifdef DIRECT_RT
 #include "lib/scene_rt.glsl"
 #endif
@@ -44,7 +48,6 @@ uniform sampler2D u_gb_geonormal;
 uniform vec3 u_camera_pos;
 uniform int u_ortho;
 uniform vec3 u_camera_dir;
-uniform vec3 u_world;
 uniform uint u_sample;
 uniform int u_glossy_samples;
 uniform int u_mesh_exact_max;
@@ -223,7 +226,7 @@ void main() {
     if (any(greaterThanEqual(px, size))) return;
     vec4 pos = texelFetch(u_gb_position, px, 0);
     if (pos.w < 0.0) {
-        imageStore(o_color, px, vec4(sanitize(u_world), 1.0));
+        imageStore(o_color, px, vec4(sanitize(world_background(px, size)), 1.0));
         imageStore(o_direct, px, vec4(0.0, 0.0, 0.0, 1.0));
         imageStore(o_emit, px, vec4(0.0, 0.0, 0.0, 1.0));
         imageStore(o_world_spec, px, vec4(0.0, 0.0, 0.0, 1.0));
@@ -306,8 +309,8 @@ void main() {
         float vis_d, vis_g;
         world_visibility(u_world_first, u_world_count, P, N, Ng, D, vis_d, vis_g);
         float NoV = max(dot(N, V), 1e-4);
-        direct += u_world * diffuse_albedo(s, NoV) * vis_d;
-        world_spec = sanitize(u_world * specular_albedo(s, NoV) * vis_g);
+        direct += world_irradiance(N) * INV_PI * diffuse_albedo(s, NoV) * vis_d;
+        world_spec = sanitize(world_glossy(D, a) * specular_albedo(s, NoV) * vis_g);
         direct += world_spec;
     }
     direct = sanitize(direct);

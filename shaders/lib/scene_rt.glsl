@@ -14,8 +14,8 @@
 //   Light selection (by power; suns weighted by the scene's cross-section):
 //     int i = select_light(u, prob);     float prob = light_pdf(i);
 //     int li = mesh_light_of(instance);  // the mesh light built from an emissive instance, -1 none
-//   Direct light at any surface point (next-event estimation: one light by power, one point on
-//   it, one shadow ray through the BVH):
+//   Direct light at any surface point (next-event estimation: one light by power, or the world
+//   map by its luminance, one point on it, one shadow ray through the BVH):
 //     vec3 Ld = shade_direct(s, V, rng);              // alone: unbiased, light sampling only
 //     vec3 Ld = shade_direct_mis(s, V, rng);          // weighted for MIS with a BSDF ray whose
 //                                                     //   emission is taken by bsdf_hit_light_mis
@@ -31,6 +31,7 @@
 
 #include "lib/bvh.glsl"
 #include "lib/textures.glsl"
+#include "lib/world.glsl"
 
 #ifndef RT_BINDING_LIGHT_SELECT
 #define RT_BINDING_LIGHT_SELECT 15
@@ -41,7 +42,14 @@ layout(std430, binding = RT_BINDING_LIGHT_SELECT) readonly buffer RtLightSelect 
 
 uniform sampler2DArray u_textures;
 uniform int u_material_count;
-uniform vec3 u_rt_world;  // the world's uniform radiance (background and light)
+// The world map as a light (lib/world.glsl): chosen by next-event estimation with probability
+// u_world_select (0 for a uniform world: it is then reached by BSDF rays only), then a
+// direction by the map's sampling tables at u_world_table in rt_light_select (marginal CDF
+// over the u_world_grid.y rows, then one conditional CDF of u_world_grid.x cells per row;
+// render/world_map.py builds them and samples the same way on the CPU).
+uniform float u_world_select;
+uniform int u_world_table;
+uniform ivec2 u_world_grid;
 
 struct SurfaceHit {
     float t;
@@ -116,6 +124,55 @@ int mesh_light_of(int instance) {
     return instance < 0 ? -1 : int(floor(rt_light_select[2 * u_light_count + instance] + 0.5));
 }
 
+// Probability that next-event estimation picks light i (the world takes u_world_select).
+float nee_light_prob(int i) { return light_pdf(i) * (1.0 - u_world_select); }
+
+// First index in [first, first + n) whose cdf entry exceeds u (n - 1 if none).
+int world_cdf_search(int first, int n, float u) {
+    int lo = 0, hi = n - 1;
+    while (lo < hi) {
+        int mid = (lo + hi) / 2;
+        if (rt_light_select[first + mid] <= u) lo = mid + 1; else hi = mid;
+    }
+    return lo;
+}
+
+float world_cell_prob(int row, int col) {
+    int gw = u_world_grid.x;
+    float r1 = rt_light_select[u_world_table + row];
+    float r0 = row > 0 ? rt_light_select[u_world_table + row - 1] : 0.0;
+    int c = u_world_table + u_world_grid.y + row * gw;
+    float c1 = rt_light_select[c + col];
+    float c0 = col > 0 ? rt_light_select[c + col - 1] : 0.0;
+    return (r1 - r0) * (c1 - c0);
+}
+
+// Solid-angle pdf with which world_sample produces direction d (map worlds only).
+float world_pdf(vec3 d) {
+    vec2 uv = world_uv(d);
+    int col = clamp(int(uv.x * float(u_world_grid.x)), 0, u_world_grid.x - 1);
+    int row = clamp(int(uv.y * float(u_world_grid.y)), 0, u_world_grid.y - 1);
+    float ce = max(cos(PI * (uv.y - 0.5)), 1e-6);
+    return world_cell_prob(row, col) * float(u_world_grid.x * u_world_grid.y) / (2.0 * PI * PI * ce);
+}
+
+// A direction towards the world map by its luminance (a cell by the tables, a uniform
+// point in the cell's (u, v) rectangle); pdf in solid angle.
+vec3 world_sample(vec2 u, out float pdf) {
+    int gw = u_world_grid.x, gh = u_world_grid.y;
+    int row = world_cdf_search(u_world_table, gh, u.x);
+    float r0 = row > 0 ? rt_light_select[u_world_table + row - 1] : 0.0;
+    float fy = (u.x - r0) / max(rt_light_select[u_world_table + row] - r0, 1e-30);
+    int c = u_world_table + gh + row * gw;
+    int col = world_cdf_search(c, gw, u.y);
+    float c0 = col > 0 ? rt_light_select[c + col - 1] : 0.0;
+    float fx = (u.y - c0) / max(rt_light_select[c + col] - c0, 1e-30);
+    vec2 uv = vec2((float(col) + clamp(fx, 0.0, 1.0)) / float(gw), (float(row) + clamp(fy, 0.0, 1.0)) / float(gh));
+    float ce = max(cos(PI * (uv.y - 0.5)), 1e-6);
+    pdf = world_cell_prob(row, col) * float(gw * gh) / (2.0 * PI * PI * ce);
+    return world_uv_to_dir(uv);
+}
+
 // ---------------------------------------------------------------- next-event estimation
 // One light by power, one point on it (sample_light, from the offset origin p so the shadow
 // ray ends exactly at the sample), a shadow ray for lights that cast shadows. Returns
@@ -128,17 +185,29 @@ vec3 shade_direct_split(Surface bs, vec3 p, vec3 N, vec3 Ng, vec3 V, inout Rng r
                         out vec3 glossy, out float ldist) {
     glossy = vec3(0.0);
     ldist = 0.0;
-    if (u_light_count <= 0) return vec3(0.0);
+    if (u_light_count <= 0 && u_world_select <= 0.0) return vec3(0.0);
     vec4 ul = rng_next4(rng);
     float sel;
-    int li = select_light(ul.x, sel);
-    Light L = lights[li];
-    LightSample ls = sample_light(L, p, ul.yz, ul.w);
+    LightSample ls;
+    bool shadowed = true;
+    if (ul.x < u_world_select) {  // the world map
+        sel = u_world_select;
+        ls.dir = world_sample(ul.yz, ls.pdf);
+        ls.dist = T_INF;
+        ls.delta = false;
+        ls.Li = world_radiance(ls.dir);
+    } else {
+        int li = select_light((ul.x - u_world_select) / (1.0 - u_world_select), sel);
+        sel *= 1.0 - u_world_select;
+        Light L = lights[li];
+        ls = sample_light(L, p, ul.yz, ul.w);
+        shadowed = L.axis_w.w > 0.5;
+    }
     if (ls.pdf <= 0.0 || sel <= 0.0 || dot(ls.dir, Ng) <= 0.0) return vec3(0.0);
     BsdfEval fe = eval_principled(bs, N, V, ls.dir);
     vec3 f = fe.diffuse + fe.glossy;
     if (max3(f) <= 0.0 || max3(ls.Li) <= 0.0) return vec3(0.0);
-    if (L.axis_w.w > 0.5 && scene_occluded(p, ls.dir, 0.0, ls.dist * (1.0 - 1e-4))) return vec3(0.0);
+    if (shadowed && scene_occluded(p, ls.dir, 0.0, ls.dist * (1.0 - 1e-4))) return vec3(0.0);
     float lpdf = sel * ls.pdf;
     float w = (ls.delta || !mis) ? 1.0 : power_heuristic(lpdf, pdf_principled(bs, N, V, ls.dir));
     glossy = fe.glossy * ls.Li * (w / lpdf);
@@ -177,11 +246,15 @@ vec3 bsdf_hit_light_mis(vec3 o, vec3 d, float tmin, bool hit, SurfaceHit s, floa
         vec3 Le;
         float lpdf;
         if (light_ray_hit(lights[i], o, d, tmin, t_surf, Le, lpdf)) {
-            float w = bsdf_pdf > 0.0 ? power_heuristic(bsdf_pdf, light_pdf(i) * lpdf) : 1.0;
+            float w = bsdf_pdf > 0.0 ? power_heuristic(bsdf_pdf, nee_light_prob(i) * lpdf) : 1.0;
             sum += Le * w;
         }
     }
-    if (!hit) return sum + u_rt_world;
+    if (!hit) {
+        float w = (bsdf_pdf > 0.0 && u_world_select > 0.0)
+                ? power_heuristic(bsdf_pdf, u_world_select * world_pdf(d)) : 1.0;
+        return sum + world_radiance(d) * w;
+    }
     vec3 E = s.bsdf.emission;
     if (max3(E) > 0.0) {
         float w = 1.0;
@@ -195,7 +268,7 @@ vec3 bsdf_hit_light_mis(vec3 o, vec3 d, float tmin, bool hit, SurfaceHit s, floa
             float area = 0.5 * length(cross(p1 - p0, p2 - p0));
             float tri_power = area * (E.r + E.g + E.b) / 3.0 * PI;
             float tri_prob = tri_power / max(L.color.w, 1e-20);
-            float lpdf = light_pdf(li) * tri_prob * area_to_solid_angle_pdf(o, s.position, s.geo_normal, area);
+            float lpdf = nee_light_prob(li) * tri_prob * area_to_solid_angle_pdf(o, s.position, s.geo_normal, area);
             w = power_heuristic(bsdf_pdf, lpdf);
         }
         sum += E * w;

@@ -58,9 +58,10 @@ void main() {
     float NoV = max(dot(N, V), 1e-4);
     vec3 kd = diffuse_albedo(bs, NoV);
     vec3 L = shade_direct_at(bs, p, N, Ng, V, rng, false);
-    if (u_world_light != 0 && max3(kd) > 0.0) {
+    if (u_world_light != 0 && u_world_select <= 0.0 && max3(kd) > 0.0) {  // a uniform world
+                                                                          // (a map is in shade_direct)
         vec3 wd = to_world(sample_cosine_hemisphere(rng_next2(rng)), N);
-        if (dot(wd, Ng) > 0.0 && !scene_occluded(p, wd, 0.0, T_INF)) L += kd * u_rt_world;
+        if (dot(wd, Ng) > 0.0 && !scene_occluded(p, wd, 0.0, T_INF)) L += kd * u_world_color;
     }
     if (u_bounce != 0 && max3(kd) > 0.0) {
         float w;

@@ -418,8 +418,9 @@ bool bsdf_candidate(Shading sh, vec3 u, bool analytic, out Sample x, out float p
             return true;
         }
     }
-    if (max3(u_rt_world) <= 0.0) return false;
-    x.li = -1; x.y = d; x.Le = u_rt_world;
+    x.Le = world_radiance(d);
+    if (max3(x.Le) <= 0.0) return false;
+    x.li = -1; x.y = d;
     return true;
 }
 
@@ -545,7 +546,7 @@ void main() {
 #elif RESTIR_STAGE == 1
     if (!sh.valid) {
         store_reservoir(px, empty_reservoir());
-        imageStore(o_color, px, vec4(u_rt_world, 1.0));
+        imageStore(o_color, px, vec4(world_background(px, imageSize(o_color)), 1.0));
         imageStore(o_direct, px, vec4(0.0, 0.0, 0.0, 1.0));
         imageStore(o_dbg_w, px, vec4(0.0, 0.0, 0.0, 1.0));
         imageStore(o_dbg_m, px, vec4(0.0, 0.0, 0.0, 1.0));
@@ -630,7 +631,7 @@ void main() {
     store_reservoir(px, r);
 #else
     if (!sh.valid) {
-        imageStore(o_color, px, vec4(u_rt_world, 1.0));
+        imageStore(o_color, px, vec4(world_background(px, imageSize(o_color)), 1.0));
         imageStore(o_direct, px, vec4(0.0, 0.0, 0.0, 1.0));
         imageStore(o_emit, px, vec4(0.0, 0.0, 0.0, 1.0));
         return;
@@ -639,12 +640,13 @@ void main() {
     int spp = max(u_baseline_spp, 1);
     for (int k = 0; k < spp; ++k) {
         acc += shade_direct_at(sh.s, sh.p, sh.N, sh.Ng, sh.V, rng, u_baseline_bsdf == 2);
-        if (u_baseline_bsdf == 1) {  // the world, which light sampling does not cover, by one BSDF ray
+        if (u_baseline_bsdf == 1) {  // a uniform world, which light sampling does not cover, by one BSDF ray
             float pdf;
             vec3 dir = sample_principled(sh.s, sh.N, sh.V, rng_next4(rng).xyz, pdf);
-            if (pdf > 0.0 && dot(dir, sh.Ng) > 0.0 && max3(u_rt_world) > 0.0 && !scene_occluded(sh.p, dir, 0.0, T_INF)) {
+            if (u_world_select <= 0.0 && pdf > 0.0 && dot(dir, sh.Ng) > 0.0 && max3(u_world_color) > 0.0
+                && !scene_occluded(sh.p, dir, 0.0, T_INF)) {
                 BsdfEval fe = eval_principled(sh.s, sh.N, sh.V, dir);
-                acc += sanitize((fe.diffuse + fe.glossy) * u_rt_world / pdf);
+                acc += sanitize((fe.diffuse + fe.glossy) * world_radiance(dir) / pdf);
             }
         } else if (u_baseline_bsdf == 2) {  // the BSDF half of MIS: lights crossed, emissive surfaces, the world
             float pdf;

@@ -242,7 +242,7 @@ void main() {
         vec4 ub = rng_next4(rng);
         float pdf;
         vec3 wi = sample_principled(sh.s, sh.N, sh.V, ub.xyz, pdf);
-        if (pdf > 0.0 && dot(wi, sh.Ng) > 0.0 && u_light_count + int(max3(u_rt_world) > 0.0) > 0) {
+        if (pdf > 0.0 && dot(wi, sh.Ng) > 0.0 && u_light_count + int(max3(u_world_color) > 0.0) > 0) {
             SurfaceHit h;
             if (scene_trace(sh.p, wi, 0.0, T_INF, h)) {
                 Reservoir y = empty_reservoir();

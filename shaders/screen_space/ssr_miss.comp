@@ -10,7 +10,7 @@
 //        point on it, one shadow ray; the hit's full BSDF seen from -L; at a glossy hit also one
 //        BSDF-sampled ray for the lights it meets, MIS-weighted as in PT: the largest sample of a
 //        light's highlight seen in the corridor's mirror floor 98 -> 52 over 12 frames), plus the world's light
-//        on it with one cosine-sampled visibility ray (u_rt_world times its diffuse and glossy
+//        on it with one cosine-sampled visibility ray (a uniform world times its diffuse and glossy
 //        albedos where that ray escapes; as DIRECT lights a pixel by the world). A hit smoother
 //        than SSR_MISS_GLOSSY_MIN_ROUGHNESS (0.15) is shaded diffuse-only: one light sample of a
 //        near-mirror lobe is a firefly path (corridor, q1: the gold wall, which sees the mirror
@@ -18,7 +18,7 @@
 //        seen in a mirror: one 4.4 pixel in 2 frames; docs SSR.md). Emission of
 //        a hit emitter is NOT added: its glossy reflection is already in DIRECT's MIS glossy
 //        term, which SSR does not replace (only the world reflection aov.world_spec).
-//   miss (escapes): the world radiance u_rt_world (the sun disks are DIRECT's lights).
+//   miss (escapes): the world radiance along the ray (the sun disks are DIRECT's lights).
 // In:  u_ray0 (direction, pdf; pdf 0 = no ray), u_ray1 (hit pixel, confidence, distance).
 // Out: o_miss = (radiance, distance to the hit > 0; SSR_MISS_ESCAPE_DIST where the ray escapes)
 //      for a traced ray, 0 where there is none; with SSR_MISS_OFF
@@ -58,7 +58,7 @@ vec3 miss_radiance(vec3 O, vec3 L, float dcam, inout Rng rng, out float t, out f
     SurfaceHit s;
     t = SSR_MISS_ESCAPE_DIST;
     gdist = t;
-    if (!scene_trace(O, L, 0.0, T_INF, s)) return u_rt_world;
+    if (!scene_trace(O, L, 0.0, T_INF, s)) return world_radiance(L);
     t = clamp(s.t, 1e-3, SSR_MISS_ESCAPE_DIST);
     gdist = t;
     vec3 V = -L, Nh, Ngh, ph;
@@ -101,8 +101,10 @@ vec3 miss_radiance(vec3 O, vec3 L, float dcam, inout Rng rng, out float t, out f
                 if (max3(f) > 0.0) {
                     SurfaceHit sb;
                     bool hb = scene_trace(ph, Lb, 0.0, T_INF, sb);
-                    // lights and emitters this ray meets (the world's light is the visibility ray's below)
-                    vec3 Le = bsdf_hit_light_mis(ph, Lb, 0.0, hb, sb, bpdf, true) - (hb ? vec3(0.0) : u_rt_world);
+                    // lights and emitters this ray meets (a uniform world's light is the
+                    // visibility ray's below; a world map is sampled with the lights)
+                    vec3 Le = bsdf_hit_light_mis(ph, Lb, 0.0, hb, sb, bpdf, true)
+                            - ((hb || u_world_select > 0.0) ? vec3(0.0) : u_world_color);
                     c += f * max(Le, vec3(0.0)) / bpdf;
                     // the light this ray met: its distance to the light's centre (emitting
                     // surfaces: the hit)
@@ -124,12 +126,12 @@ vec3 miss_radiance(vec3 O, vec3 L, float dcam, inout Rng rng, out float t, out f
                 }
             }
         }
-        if (max3(u_rt_world) > 0.0) {
+        if (u_world_select <= 0.0 && max3(u_world_color) > 0.0) {
             vec4 u = rng_next4(rng);
             vec3 d = to_world(sample_cosine_hemisphere(u.xy), Nh);
             if (dot(d, Ngh) > 0.0 && !scene_occluded(ph, d, 0.0, T_INF)) {
                 float NoV = max(dot(Nh, V), 1e-4);
-                c += u_rt_world * (diffuse_albedo(bs, NoV) + specular_albedo(bs, NoV));
+                c += u_world_color * (diffuse_albedo(bs, NoV) + specular_albedo(bs, NoV));
             }
         }
     }

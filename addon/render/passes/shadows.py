@@ -19,6 +19,7 @@ import numpy as np
 from ..framegraph import BUFFER, HOST, Effect, Param, Pass, Res
 from ..gpu_scene import LIGHT_MESH, set_uniform
 from ..scene_data import LightType
+from ..world_map import world_map_of
 from .light_cull import LIGHT_CULL, TILE_BOUNDS, light_scores
 
 ATLAS, VIEWS, WORLD_RANGE = "shadow.atlas", "shadow.views", "shadow.world_range"
@@ -210,17 +211,23 @@ class ShadowPass(Pass):
                 n_views = self._views_for(rec, k, scene, rng, rc, cam, center, radius, res, views)
                 self._per_group[rec["index"]] = n_views
 
-        # world light: orthographic maps along directions stratified on the sphere, rotated
-        # every frame (frame 0 included: a fixed, well-spread set)
+        # world light: orthographic maps along directions stratified on the sphere (a uniform
+        # world) or importance-sampled from the world map by luminance (so the visibility
+        # ratio DIRECT takes is weighted by where the light comes from), rotated every frame
+        # (frame 0 included: a fixed, well-spread set)
         K = int(self["world_directions"]) if float(np.max(scene.world.color)) > 0 else 0
         if K:
             jx, jy = _halton(frame.index + 1, 2), _halton(frame.index + 1, 3)
+            us = np.array([[(k + jx) / K, (k * 0.61803398875 + jy) % 1.0] for k in range(K)])
+            wm = world_map_of(scene.world)
+            if wm is not None:
+                omegas, _ = wm.sample(us)
+            else:
+                z = 1.0 - 2.0 * us[:, 0]
+                r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+                omegas = np.stack([r * np.cos(2 * np.pi * us[:, 1]), r * np.sin(2 * np.pi * us[:, 1]), z], axis=-1)
             for k in range(K):
-                u1 = (k + jx) / K
-                u2 = (k * 0.61803398875 + jy) % 1.0
-                z = 1.0 - 2.0 * u1
-                r = math.sqrt(max(0.0, 1.0 - z * z))
-                omega = np.array([r * math.cos(2 * math.pi * u2), r * math.sin(2 * math.pi * u2), z])
+                omega = omegas[k]
                 d = -omega  # the direction light travels
                 eye = center - d * (2.0 * radius)
                 vp = ortho(radius * 1.02, 0.0, 4.0 * radius) @ look_at(eye, d, (0, 0, 1))

@@ -1,0 +1,290 @@
+"""Any world node tree as an equirectangular radiance map, evaluated by Cycles itself.
+
+A world that is not one uniform colour (an Environment Texture, a Sky Texture, gradients,
+mixes, anything Cycles can render) is rendered once by Cycles, alone, through an
+equirectangular panoramic camera oriented so that the image is in the convention of
+Blender's Environment Texture (``render/world_map.py``). Each pixel is the mean radiance
+over its solid-angle footprint (box pixel filter, ``spp`` samples). The result is cached by
+a hash of the node tree (every node's settings and links) and its images, in memory and on
+disk beside the Cycles references, so an unchanged world is never evaluated twice.
+
+Cycles runs in a child process: a render cannot start from inside another render (F12 calls
+the exporter from ``RenderEngine.render``), and the user's file is never touched. The world
+and what it uses are written with ``bpy.data.libraries.write`` into a temporary .blend, the
+child appends the world into an empty file and renders it:
+
+* with Blender itself (``bpy.app.binary_path``): ``blender -b --factory-startup -P world_bake.py -- ARGS``;
+* with the PyPI ``bpy`` module: ``python world_bake.py ARGS``.
+
+What Cycles evaluates this way is the world as camera rays see it: a tree that shows a
+different colour to camera rays than to light (Light Path "Is Camera Ray") is baked as the
+camera sees it, and the exporter says so.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+
+DEFAULT_SIZE = (1024, 512)
+MAX_WIDTH = 2048
+DEFAULT_SPP = 16
+TIMEOUT_S = 600
+_memory: dict[str, object] = {}  # key -> (H, W, 3) float32 map
+
+
+# ------------------------------------------------------------------ parent side (bpy)
+def _value(v):
+    if isinstance(v, (str, bool, int)) or v is None:
+        return v
+    if isinstance(v, float):
+        return round(v, 7)
+    try:
+        return tuple(round(float(x), 7) for x in v)
+    except (TypeError, ValueError):
+        return repr(v)
+
+
+def _image_key(img) -> str:
+    h = hashlib.blake2b(digest_size=16)
+    h.update(f"{img.name_full}|{img.source}|{tuple(img.size)}|{img.colorspace_settings.name}|"
+             f"{img.alpha_mode}".encode())
+    path = bpy_abspath(img.filepath) if img.filepath else ""
+    if img.packed_file is None and path and os.path.isfile(path) and not img.is_dirty:
+        st = os.stat(path)
+        h.update(f"{path}|{st.st_size}|{st.st_mtime_ns}".encode())
+    else:  # packed, generated or edited in Blender: the pixels themselves
+        import numpy as np
+
+        w, hgt = int(img.size[0]), int(img.size[1])
+        if w > 0 and hgt > 0:
+            px = np.empty(w * hgt * 4, np.float32)
+            img.pixels.foreach_get(px)
+            h.update(px.tobytes())
+    return h.hexdigest()
+
+
+def bpy_abspath(path: str) -> str:
+    import bpy
+
+    return os.path.normpath(bpy.path.abspath(path))
+
+
+def _tree_items(tree, seen: set) -> list:
+    """A stable description of a node tree (node settings, unlinked inputs, links, images,
+    node groups recursively)."""
+    out = []
+    if tree is None or tree.name_full in seen:
+        return out
+    seen.add(tree.name_full)
+    skip = {"rna_type", "location", "location_absolute", "width", "height", "dimensions", "select",
+            "show_options", "show_preview", "show_texture", "hide", "label", "color", "use_custom_color",
+            "parent", "inputs", "outputs", "internals", "type", "bl_idname", "bl_label", "bl_description",
+            "bl_icon", "bl_static_type", "bl_width_default", "bl_width_min", "bl_width_max",
+            "bl_height_default", "bl_height_min", "bl_height_max", "is_active_output", "warning_propagation",
+            "color_tag"}
+    for node in sorted(tree.nodes, key=lambda n: n.name):
+        item = [node.bl_idname, node.name, node.mute]
+        for prop in node.bl_rna.properties:
+            pid = prop.identifier
+            if pid in skip:
+                continue
+            try:
+                v = getattr(node, pid)
+            except AttributeError:
+                continue
+            if prop.type == "POINTER":
+                if v is None:
+                    item.append((pid, None))
+                elif pid == "image" or v.__class__.__name__ == "Image":
+                    item.append((pid, _image_key(v)))
+                elif pid == "node_tree":
+                    item.append((pid, _tree_items(v, seen)))
+                elif hasattr(v, "bl_rna"):
+                    sub = []
+                    for sp in v.bl_rna.properties:
+                        if sp.type in ("BOOLEAN", "INT", "FLOAT", "STRING", "ENUM"):
+                            try:
+                                sub.append((sp.identifier, _value(getattr(v, sp.identifier))))
+                            except (AttributeError, TypeError):
+                                pass
+                    item.append((pid, sub))
+                continue
+            if prop.type == "COLLECTION":
+                continue
+            try:
+                item.append((pid, _value(v)))
+            except Exception:  # noqa: BLE001 - a property that does not read as a value
+                pass
+        for sock in node.inputs:
+            if not sock.is_linked and hasattr(sock, "default_value"):
+                item.append((sock.identifier, _value(sock.default_value)))
+        out.append(item)
+    for lk in tree.links:
+        out.append(("link", lk.from_node.name, lk.from_socket.identifier, lk.to_node.name,
+                    lk.to_socket.identifier, lk.is_muted, lk.is_valid))
+    return out
+
+
+def world_key(world, size: tuple[int, int], spp: int) -> str:
+    import bpy
+
+    desc = repr((_tree_items(world.node_tree, set()), tuple(size), int(spp), tuple(bpy.app.version), "v1"))
+    return hashlib.sha256(desc.encode()).hexdigest()[:32]
+
+
+def uses_light_path(world) -> bool:
+    """Does the tree read the Light Path node (a world that differs for camera rays)?"""
+    return any(n.bl_idname == "ShaderNodeLightPath" for n in world.node_tree.nodes)
+
+
+def map_size(world) -> tuple[int, int]:
+    """The map's resolution: the largest environment image's width (at most MAX_WIDTH) x half."""
+    w = 0
+    for n in world.node_tree.nodes:
+        if n.bl_idname == "ShaderNodeTexEnvironment" and n.image is not None:
+            w = max(w, int(n.image.size[0]))
+    if w <= 0:
+        return DEFAULT_SIZE
+    w = max(256, min(MAX_WIDTH, 1 << int(math.ceil(math.log2(w)))))
+    return w, w // 2
+
+
+def _cache_dir() -> str:
+    from .reference import default_cache_dir
+
+    d = os.path.join(default_cache_dir(), "worlds")
+    os.makedirs(d, exist_ok=True)
+    return d
+
+
+def bake_world(world, *, size: tuple[int, int] | None = None, spp: int = DEFAULT_SPP,
+               cache_dir: str | None = None):
+    """The world's radiance map (H, W, 3) float32, row 0 at the bottom (cached). Raises
+    RuntimeError with Cycles' message when the child fails."""
+    import numpy as np
+
+    from ..compare.imageio import read_exr
+
+    size = tuple(size) if size is not None else map_size(world)
+    key = world_key(world, size, spp)
+    hit = _memory.get(key)
+    if hit is not None:
+        return hit
+    folder = cache_dir or _cache_dir()
+    path = os.path.join(folder, f"{key}.exr")
+    if os.path.isfile(path):
+        try:
+            px = np.ascontiguousarray(read_exr(path)[..., :3], np.float32)
+            _memory[key] = px
+            return px
+        except Exception:  # noqa: BLE001 - a damaged cache file: bake again
+            pass
+    px = _bake(world, size, spp, path)
+    while len(_memory) >= 8:
+        _memory.pop(next(iter(_memory)))
+    _memory[key] = px
+    return px
+
+
+def _bake(world, size, spp, out_path):
+    import bpy
+    import numpy as np
+
+    from ..compare.imageio import read_exr
+
+    tmp = tempfile.mkdtemp(prefix="gi_preview_world_")
+    try:
+        lib = os.path.join(tmp, "world.blend")
+        bpy.data.libraries.write(lib, {world}, path_remap="ABSOLUTE", fake_user=True)
+        exr = os.path.join(tmp, "world.exr")
+        args = ["--child", "--blend", lib, "--world", world.name, "--out", exr,
+                "--width", str(size[0]), "--height", str(size[1]), "--spp", str(int(spp))]
+        script = os.path.abspath(__file__)
+        if bpy.app.binary_path:
+            cmd = [bpy.app.binary_path, "-b", "--factory-startup", "-noaudio", "-P", script, "--"] + args
+        else:
+            cmd = [sys.executable, script] + args
+        env = dict(os.environ)
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT_S, env=env)
+        if proc.returncode != 0 or not os.path.isfile(exr):
+            tail = (proc.stderr or proc.stdout or "").strip().splitlines()[-6:]
+            raise RuntimeError(f"Cycles could not evaluate world '{world.name}': " + " | ".join(tail))
+        px = np.ascontiguousarray(read_exr(exr)[..., :3], np.float32)
+        try:
+            shutil.copyfile(exr, out_path + ".part")
+            os.replace(out_path + ".part", out_path)
+        except OSError:
+            pass
+        return px
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+# ------------------------------------------------------------------ child side
+def _child(argv):
+    import argparse
+
+    import bpy
+
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--child", action="store_true")
+    ap.add_argument("--blend", required=True)
+    ap.add_argument("--world", required=True)
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--width", type=int, required=True)
+    ap.add_argument("--height", type=int, required=True)
+    ap.add_argument("--spp", type=int, required=True)
+    a = ap.parse_args(argv)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    with bpy.data.libraries.load(a.blend, link=False) as (src, dst):
+        dst.worlds = [a.world]
+    world = dst.worlds[0]
+    sc = bpy.context.scene
+    sc.world = world
+    cam = bpy.data.cameras.new("GI Preview world camera")
+    cam.type = "PANO"
+    cam.panorama_type = "EQUIRECTANGULAR"
+    ob = bpy.data.objects.new("GI Preview world camera", cam)
+    sc.collection.objects.link(ob)
+    sc.camera = ob
+    # Looking along +X with +Z up: +X lands at the image's centre, +Y a quarter to the left,
+    # as Blender's Environment Texture maps it.
+    ob.rotation_euler = (math.pi / 2, 0.0, -math.pi / 2)
+    r = sc.render
+    r.engine = "CYCLES"
+    c = sc.cycles
+    c.device = "CPU"
+    c.samples = a.spp
+    c.use_adaptive_sampling = False
+    c.use_denoising = False
+    c.pixel_filter_type = "BOX"
+    c.filter_width = 1.0
+    c.seed = 1
+    c.sample_clamp_direct = 0.0
+    c.sample_clamp_indirect = 0.0
+    for vl in sc.view_layers:
+        vl.cycles.use_denoising = False
+    r.film_transparent = False
+    r.resolution_x, r.resolution_y, r.resolution_percentage = a.width, a.height, 100
+    r.use_compositing = False
+    r.use_sequencer = False
+    r.image_settings.file_format = "OPEN_EXR"
+    r.image_settings.color_depth = "32"
+    r.image_settings.color_mode = "RGB"
+    sc.view_settings.view_transform = "Standard"
+    sc.view_settings.look = "None"
+    sc.view_settings.exposure = 0.0
+    sc.view_settings.gamma = 1.0
+    r.filepath = a.out
+    bpy.ops.render.render(write_still=True)
+
+
+if __name__ == "__main__":
+    argv = sys.argv[sys.argv.index("--") + 1:] if "--" in sys.argv else sys.argv[1:]
+    if "--child" in argv:
+        _child(argv)

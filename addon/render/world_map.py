@@ -1,0 +1,262 @@
+"""The world as a light: an equirectangular radiance map, its sampling tables and its
+prefiltered forms. bpy-free; the exporter fills ``SceneData.world.map`` and every pass reads
+the world through ``shaders/lib/world.glsl``.
+
+Map convention (Blender's Environment Texture and Cycles' equirectangular camera): pixel
+``map[row, col]``, row 0 at the bottom (elevation -90 deg), ``u = (col + 0.5) / W``,
+``v = (row + 0.5) / H``; direction ``d`` has azimuth ``atan2(d.y, d.x) = pi (1 - 2u)`` and
+elevation ``asin(d.z) = pi (v - 0.5)`` (+X at the map's centre, +Y a quarter to the left).
+
+What the world provides, each computed once per map:
+
+* ``mean``: the solid-angle mean radiance (what passes that treat the world as uniform use);
+* ``sh``: nine spherical-harmonic coefficients of the irradiance ``E(n)`` (the radiance's
+  order-2 projection convolved with the clamped cosine, Ramamoorthi & Hanrahan 2001);
+* a piecewise-constant sampling density over a grid of at most ``SAMPLE_GRID`` cells,
+  proportional to luminance x cos(elevation) (the solid angle of a cell), stored as a
+  marginal CDF over rows and one conditional CDF per row: ``sample`` / ``pdf`` below and
+  ``world_sample`` / ``world_pdf`` in ``lib/scene_rt.glsl`` read the same tables, so
+  importance sampling and its MIS weights agree on the CPU and the GPU;
+* the map itself with mipmaps on the GPU (``world_glossy``: a roughness-dependent level).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+SAMPLE_GRID = (512, 256)  # at most W x H cells in the sampling tables
+MAX_MAP_WIDTH = 4096
+# A cell's density never falls below this fraction of the mean density: bilinear lookups
+# reach half a texel into dark cells, which must then still be sampled.
+DENSITY_FLOOR = 1e-3
+WORLD_TEXTURE_UNIT = 31  # fixed texture unit of u_world_map (scene buffers use unit 0, passes 1..)
+
+
+def directions(width: int, height: int) -> np.ndarray:
+    """Unit directions of the pixel centres of a W x H map, (H, W, 3), row 0 at the bottom."""
+    u = (np.arange(width) + 0.5) / width
+    v = (np.arange(height) + 0.5) / height
+    az = np.pi * (1.0 - 2.0 * u)
+    el = np.pi * (v - 0.5)
+    ce = np.cos(el)[:, None]
+    return np.stack([ce * np.cos(az)[None, :], ce * np.sin(az)[None, :],
+                     np.repeat(np.sin(el)[:, None], width, axis=1)], axis=-1)
+
+
+def direction_to_uv(d: np.ndarray) -> np.ndarray:
+    """(..., 3) directions -> (..., 2) map coordinates (u, v) in [0, 1]."""
+    d = np.asarray(d, np.float64)
+    d = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-30)
+    u = 0.5 - np.arctan2(d[..., 1], d[..., 0]) / (2.0 * np.pi)
+    v = 0.5 + np.arcsin(np.clip(d[..., 2], -1.0, 1.0)) / np.pi
+    return np.stack([u % 1.0, v], axis=-1)
+
+
+def uv_to_direction(uv: np.ndarray) -> np.ndarray:
+    uv = np.asarray(uv, np.float64)
+    az = np.pi * (1.0 - 2.0 * uv[..., 0])
+    el = np.pi * (uv[..., 1] - 0.5)
+    ce = np.cos(el)
+    return np.stack([ce * np.cos(az), ce * np.sin(az), np.sin(el)], axis=-1)
+
+
+def pixel_solid_angles(width: int, height: int) -> np.ndarray:
+    """(H, 1) exact solid angle of one pixel of each row."""
+    e0 = np.pi * (np.arange(height) / height - 0.5)
+    e1 = np.pi * ((np.arange(height) + 1) / height - 0.5)
+    return ((np.sin(e1) - np.sin(e0)) * (2.0 * np.pi / width))[:, None]
+
+
+def _luminance(rgb: np.ndarray) -> np.ndarray:
+    return rgb[..., 0] * 0.2126 + rgb[..., 1] * 0.7152 + rgb[..., 2] * 0.0722
+
+
+def _block_mean(a: np.ndarray, h: int, w: int) -> np.ndarray:
+    """Mean of a (H, W) array over an h x w grid of equal blocks (H, W multiples of h, w)."""
+    H, W = a.shape
+    return a.reshape(h, H // h, w, W // w).mean(axis=(1, 3))
+
+
+def sh_basis(d: np.ndarray) -> np.ndarray:
+    """Real SH basis up to order 2 at unit directions (..., 3) -> (..., 9)."""
+    x, y, z = d[..., 0], d[..., 1], d[..., 2]
+    return np.stack([
+        0.282095 * np.ones_like(x),
+        0.488603 * y, 0.488603 * z, 0.488603 * x,
+        1.092548 * x * y, 1.092548 * y * z, 0.315392 * (3.0 * z * z - 1.0),
+        1.092548 * x * z, 0.546274 * (x * x - y * y)], axis=-1)
+
+
+_SH_COSINE = np.array([np.pi] + [2.0 * np.pi / 3.0] * 3 + [np.pi / 4.0] * 5)
+
+
+class WorldMap:
+    """Tables derived from one equirectangular radiance map (H, W, 3), row 0 at the bottom."""
+
+    def __init__(self, pixels: np.ndarray):
+        px = np.ascontiguousarray(np.asarray(pixels, np.float32)[..., :3])
+        px = np.where(np.isfinite(px), np.maximum(px, 0.0), 0.0).astype(np.float32)
+        self.pixels = px
+        H, W = px.shape[:2]
+        self.width, self.height = W, H
+        sa = pixel_solid_angles(W, H)
+        self.mean = (px * sa[..., None]).sum(axis=(0, 1)) / (4.0 * np.pi)
+        dirs = directions(W, H)
+        basis = sh_basis(dirs)  # (H, W, 9)
+        coeff = np.einsum("hwk,hwc,h->kc", basis, px.astype(np.float64), sa[:, 0])
+        self.sh = (coeff * _SH_COSINE[:, None]).astype(np.float32)  # irradiance E(n) = sum sh_k Y_k(n)
+        # sampling grid: a divisor grid of the map no larger than SAMPLE_GRID
+        gw = W
+        while gw > SAMPLE_GRID[0] and gw % 2 == 0:
+            gw //= 2
+        gh = H
+        while gh > SAMPLE_GRID[1] and gh % 2 == 0:
+            gh //= 2
+        lum = _block_mean(_luminance(px.astype(np.float64)), gh, gw)
+        cell_sa = pixel_solid_angles(gw, gh)
+        weight = lum * cell_sa
+        total = weight.sum()
+        if total <= 0.0:
+            weight = np.broadcast_to(cell_sa, (gh, gw)).copy()
+            total = weight.sum()
+        weight = weight + DENSITY_FLOOR * total / weight.size
+        row = weight.sum(axis=1)
+        self.grid = (gw, gh)
+        self.marginal = np.cumsum(row) / row.sum()
+        self.marginal[-1] = 1.0
+        cond = np.cumsum(weight, axis=1) / row[:, None]
+        cond[:, -1] = 1.0
+        self.conditional = cond
+        self._p = weight / weight.sum()  # probability of each cell
+
+    # ------------------------------------------------------------------ tables
+    def table(self) -> np.ndarray:
+        """The flat float32 table the shaders read: marginal CDF (gh), then gh conditional
+        CDFs of gw entries each."""
+        return np.concatenate([self.marginal, self.conditional.ravel()]).astype(np.float32)
+
+    def power_weight(self, radius: float) -> float:
+        """Selection weight against lights (rt_scene.light_selection's units: a sun's
+        irradiance x the scene's cross-section): the world's irradiance at normal incidence
+        (pi x mean radiance, in luminance) over a disk of the scene's radius."""
+        return float(np.pi * _luminance(self.mean) * np.pi * radius * radius)
+
+    # ------------------------------------------------------------------ CPU sampling
+    def sample(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Directions (N, 3) and their solid-angle pdfs for uniform numbers u (N, 2), by the
+        same tables and arithmetic as ``world_sample`` in lib/scene_rt.glsl."""
+        u = np.asarray(u, np.float64).reshape(-1, 2)
+        gw, gh = self.grid
+        r = np.minimum(np.searchsorted(self.marginal, u[:, 0], side="right"), gh - 1)
+        r0 = np.where(r > 0, self.marginal[np.maximum(r - 1, 0)], 0.0)
+        fy = (u[:, 0] - r0) / np.maximum(self.marginal[r] - r0, 1e-30)
+        c = np.array([min(int(np.searchsorted(self.conditional[ri], ui, side="right")), gw - 1)
+                      for ri, ui in zip(r, u[:, 1])], np.int64)
+        c0 = np.where(c > 0, self.conditional[r, np.maximum(c - 1, 0)], 0.0)
+        fx = (u[:, 1] - c0) / np.maximum(self.conditional[r, c] - c0, 1e-30)
+        uv = np.stack([(c + np.clip(fx, 0, 1)) / gw, (r + np.clip(fy, 0, 1)) / gh], axis=-1)
+        d = uv_to_direction(uv)
+        return d, self.pdf(d)
+
+    def pdf(self, d: np.ndarray) -> np.ndarray:
+        """Solid-angle pdf of directions (N, 3) under ``sample``."""
+        gw, gh = self.grid
+        uv = direction_to_uv(d)
+        c = np.clip((uv[..., 0] * gw).astype(np.int64), 0, gw - 1)
+        r = np.clip((uv[..., 1] * gh).astype(np.int64), 0, gh - 1)
+        el = np.pi * (uv[..., 1] - 0.5)
+        return self._p[r, c] * gw * gh / (2.0 * np.pi * np.pi * np.maximum(np.cos(el), 1e-6))
+
+    def radiance(self, d: np.ndarray) -> np.ndarray:
+        """Nearest-texel radiance along directions (N, 3) (tests and host-side estimates)."""
+        uv = direction_to_uv(d)
+        c = np.clip((uv[..., 0] * self.width).astype(np.int64), 0, self.width - 1)
+        r = np.clip((uv[..., 1] * self.height).astype(np.int64), 0, self.height - 1)
+        return self.pixels[r, c]
+
+    def irradiance(self, n: np.ndarray) -> np.ndarray:
+        """Irradiance E(n) (N, 3) from the SH coefficients (as world_irradiance in GLSL)."""
+        return sh_basis(np.asarray(n, np.float64)) @ self.sh
+
+
+_MAPS: dict[int, tuple[np.ndarray, WorldMap]] = {}
+
+
+def world_map_of(world) -> WorldMap | None:
+    """The WorldMap of a ``scene_data.World``; None for a uniform world. Cached per map
+    array (the exporter hands back the same array while the world does not change)."""
+    px = getattr(world, "map", None)
+    if px is None:
+        return None
+    hit = _MAPS.get(id(px))
+    if hit is not None and hit[0] is px:
+        return hit[1]
+    wm = WorldMap(px)
+    while len(_MAPS) >= 4:
+        _MAPS.pop(next(iter(_MAPS)))
+    _MAPS[id(px)] = (px, wm)
+    return wm
+
+
+class WorldGPU:
+    """The world's GPU resources of one GL context: the map texture (mipmapped, RGBA32F) and
+    the uniforms of lib/world.glsl. The sampling tables travel in the ray tracer's light
+    table (rt_scene.light_table)."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.texture = None
+        self._key = None
+        self.map: WorldMap | None = None
+
+    def update(self, world) -> bool:
+        """Upload ``world``'s map if it changed; True when anything changed."""
+        wm = world_map_of(world)
+        key = None if wm is None else (id(wm.pixels), wm.pixels.shape)
+        if key == self._key and self.texture is not None:
+            return False
+        import moderngl
+
+        if self.texture is not None:
+            self.texture.release()
+        if wm is None:
+            data = np.zeros((1, 1, 4), np.float32)
+        else:
+            data = np.concatenate([wm.pixels, np.ones(wm.pixels.shape[:2] + (1,), np.float32)], axis=-1)
+        h, w = data.shape[:2]
+        tex = self.ctx.texture((w, h), 4, np.ascontiguousarray(data).tobytes(), dtype="f4")
+        tex.build_mipmaps()
+        tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
+        tex.repeat_x = True
+        tex.repeat_y = False
+        self.texture = tex
+        self._key = key
+        self.map = wm
+        return True
+
+    def bind(self, prog, world) -> None:
+        from .gpu_scene import set_uniform
+
+        wm = self.map
+        self.texture.use(WORLD_TEXTURE_UNIT)
+        set_uniform(prog, "u_world_map", WORLD_TEXTURE_UNIT)
+        set_uniform(prog, "u_world_mode", 0 if wm is None else 1)
+        mean = wm.mean if wm is not None else np.asarray(world.color, np.float64)
+        set_uniform(prog, "u_world_color", tuple(float(x) for x in mean))
+        if wm is not None:
+            set_uniform(prog, "u_world_lods", float(math.floor(math.log2(max(wm.width, wm.height)))))
+            set_uniform(prog, "u_world_grid", tuple(int(x) for x in wm.grid))
+            try:
+                u = prog["u_world_sh"]
+            except KeyError:
+                u = None
+            if u is not None:
+                u.write(np.ascontiguousarray(wm.sh, np.float32).tobytes())
+
+    def release(self) -> None:
+        if self.texture is not None:
+            self.texture.release()
+            self.texture = None
+        self._key = None
+        self.map = None
