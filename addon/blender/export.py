@@ -15,6 +15,9 @@
   point/spot intensity ``P*color/(4 pi)`` W/sr, sun irradiance ``E*color`` W/m^2, area
   radiance ``P*color/(pi*A)`` (``normalize``) or ``P*color/pi``; all times ``2**exposure``
   and the blackbody colour when ``use_temperature``.
+* The world: a Background colour (times strength) is uniform; any other node tree is
+  evaluated by Cycles into an equirectangular radiance map (``world_bake.bake_world``,
+  cached), whose solid-angle mean is ``World.color``.
 * Camera from ``calc_matrix_camera`` (sensor fit, shift, pixel aspect included).
 
 Exporting never changes the scene: evaluated data is only read, ``to_mesh`` meshes are
@@ -30,7 +33,7 @@ import numpy as np
 
 from ..render.scene_data import (AreaShape, Camera, Instance, Light, LightType, Material,
                                  Mesh, SceneData, SceneError, Texture, World)
-from ..render.world_map import world_map_of
+from ..render.world_map import extract_sun, world_map_of
 
 __all__ = ["export_scene", "SceneExporter", "instance_id", "DEFAULT_MATERIAL_NAME"]
 
@@ -466,8 +469,14 @@ class _Exporter:
                             "light from the world may differ from Cycles")
             for w in warnings:
                 self.warn(w)
+        sun, px = _world_sun(px)
+        sun_name = ""
+        if sun is not None:
+            sun_name = f"{wo.name} sun"
+            self.data.lights.append(_sun_light(sun_name, sun))
         mean = world_map_of_pixels(px)
-        self.data.world = World(color=mean, exact=not warnings, warnings=warnings, map=px, source="cycles")
+        self.data.world = World(color=mean, exact=not warnings, warnings=warnings, map=px, source="cycles",
+                                sun_light=sun_name)
 
     # -------------------------------------------------------------- camera
     def camera(self, scene, cam_ob, width: int, height: int) -> None:
@@ -489,6 +498,35 @@ class _Exporter:
         self.data.camera = Camera(name=cam_ob.name, matrix_world=_matrix(ev.matrix_world),
                                   projection=_matrix(proj), type=cd.type,
                                   clip_start=float(cd.clip_start), clip_end=float(cd.clip_end))
+
+
+_SUNS: dict[int, tuple] = {}  # id(baked map) -> (map, sun, residual): one split per map
+
+
+def _world_sun(px: np.ndarray):
+    """(sun or None, the map without it) for a baked map, cached per map array."""
+    hit = _SUNS.get(id(px))
+    if hit is not None and hit[0] is px:
+        return hit[1], hit[2]
+    sun, residual = extract_sun(px)
+    while len(_SUNS) >= 4:
+        _SUNS.pop(next(iter(_SUNS)))
+    _SUNS[id(px)] = (px, sun, residual)
+    return sun, residual
+
+
+def _sun_light(name: str, sun: dict) -> Light:
+    """A sun light along the extracted sun's direction, of its irradiance and size."""
+    z = np.asarray(sun["direction"], np.float64)  # lights shine along -Z: +Z points at the sun
+    helper = np.array([0.0, 0.0, 1.0]) if abs(z[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    x = np.cross(helper, z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    m = np.eye(4, dtype=np.float32)
+    m[:3, 0], m[:3, 1], m[:3, 2] = x, y, z
+    e = np.asarray(sun["irradiance"], np.float32)
+    return Light(name=name, type=LightType.SUN, matrix=m, color=e, angle=float(sun["angle"]),
+                 cast_shadow=True, power=float(e.mean()))
 
 
 def world_map_of_pixels(px: np.ndarray) -> np.ndarray:
@@ -595,6 +633,7 @@ def export_scene(depsgraph, *, width: int | None = None, height: int | None = No
     data = ex.data
     data.width, data.height = width, height
     data.frame = int(scene.frame_current)
+    data.film_transparent = bool(r.film_transparent)
     data.name = scene.name
     if cache is not None:
         cache.last_stats = {"meshes_read": ex.meshes_read, "meshes_reused": ex.meshes_reused}

@@ -33,6 +33,7 @@ import tempfile
 DEFAULT_SIZE = (1024, 512)
 MAX_WIDTH = 2048
 DEFAULT_SPP = 16
+SUN_SPP = 1024  # the window around a bright peak (a sun disc) is rendered again with this many
 TIMEOUT_S = 600
 _memory: dict[str, object] = {}  # key -> (H, W, 3) float32 map
 
@@ -133,7 +134,7 @@ def _tree_items(tree, seen: set) -> list:
 def world_key(world, size: tuple[int, int], spp: int) -> str:
     import bpy
 
-    desc = repr((_tree_items(world.node_tree, set()), tuple(size), int(spp), tuple(bpy.app.version), "v1"))
+    desc = repr((_tree_items(world.node_tree, set()), tuple(size), int(spp), SUN_SPP, tuple(bpy.app.version), "v2"))
     return hashlib.sha256(desc.encode()).hexdigest()[:32]
 
 
@@ -282,6 +283,61 @@ def _child(argv):
     sc.view_settings.gamma = 1.0
     r.filepath = a.out
     bpy.ops.render.render(write_still=True)
+    _refine_peak(a, sc)
+
+
+def _read_pixels(path):
+    """(H, W, 4) float32, row 0 at the bottom."""
+    import bpy
+    import numpy as np
+
+    bpy.utils.expose_bundled_modules()
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(path)
+    px = np.asarray(inp.read_image(format="float"), np.float32)
+    inp.close()
+    if px.shape[2] == 3:
+        px = np.concatenate([px, np.ones(px.shape[:2] + (1,), np.float32)], axis=2)
+    return np.ascontiguousarray(px[::-1])
+
+
+def _refine_peak(a, sc):
+    """A small, very bright source (a sun disc) covers a few texels partially, so 16 samples
+    per texel leave its energy noisy (about 7 % for a default sky's sun): render the window
+    around the brightest texel again at SUN_SPP samples and splice it in."""
+    import bpy
+    import numpy as np
+
+    px = _read_pixels(a.out)
+    h, w = px.shape[:2]
+    lum = px[..., :3] @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    y, x = np.unravel_index(int(np.argmax(lum)), lum.shape)
+    if not lum[y, x] > 50.0 * max(float(np.median(lum)), 1e-12):
+        return
+    half = max(8, w // 64)
+    x0, x1 = max(0, x - half), min(w, x + half + 1)
+    y0, y1 = max(0, y - half), min(h, y + half + 1)
+    r = sc.render
+    r.use_border = True
+    r.use_crop_to_border = False
+    r.border_min_x, r.border_max_x = x0 / w, x1 / w
+    r.border_min_y, r.border_max_y = y0 / h, y1 / h  # Blender's rows count from the bottom, as pixels do
+    sc.cycles.samples = SUN_SPP
+    sun_path = a.out + ".peak.exr"
+    r.filepath = sun_path
+    bpy.ops.render.render(write_still=True)
+    win = _read_pixels(sun_path)
+    # whole texels inside the window (its edge texels may be rendered only in part)
+    px[y0 + 1:y1 - 1, x0 + 1:x1 - 1] = win[y0 + 1:y1 - 1, x0 + 1:x1 - 1]
+    bpy.utils.expose_bundled_modules()
+    import OpenImageIO as oiio
+
+    out = oiio.ImageOutput.create(a.out)
+    spec = oiio.ImageSpec(w, h, 4, "float")
+    out.open(a.out, spec)
+    out.write_image(np.ascontiguousarray(px[::-1]))  # files store the top row first
+    out.close()
 
 
 if __name__ == "__main__":

@@ -387,7 +387,7 @@ class GPUScene:
         set_uniform(prog, "u_emitter_count", self.emitter_count)
         set_uniform(prog, "u_material_count", len(self.scene.materials) if self.scene else 0)
         if self.scene is not None:
-            self.world.bind(prog, self.scene.world)
+            self.world.bind(prog, self.scene.world, self.scene.film_transparent)
 
     def vao(self, key: str, prog):
         vk = (key, prog.glo)

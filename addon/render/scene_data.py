@@ -222,6 +222,9 @@ class World:
     warnings: list[str] = field(default_factory=list)
     map: np.ndarray | None = None
     source: str = "uniform"
+    # The sun taken out of the map (world_map.extract_sun: a compact region carrying a large
+    # share of the light), now the light named here in SceneData.lights; "" when none.
+    sun_light: str = ""
 
 
 @dataclass
@@ -239,6 +242,9 @@ class SceneData:
     height: int = 256
     frame: int = 1
     name: str = "scene"
+    # Render > Film > Transparent: the camera sees no world (RGB 0, alpha = coverage); the
+    # world still lights the scene
+    film_transparent: bool = False
     warnings: list[str] = field(default_factory=list)
 
     # ---------------------------------------------------------------- queries

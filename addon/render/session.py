@@ -83,9 +83,11 @@ class Session:
             self.graphs[key] = (tech, graph)
         return self.graphs[key]
 
-    def _accumulate(self, name: str, res_name: str, weight: float):
+    def _accumulate(self, name: str, res_name: str, weight: float, coverage: bool = False):
         """acc[name] += (resource - acc) * weight (running mean) on the GPU; the graph's
-        barrier state makes the pass's image stores visible to this texture fetch."""
+        barrier state makes the pass's image stores visible to this texture fetch. With
+        ``coverage`` the resource is the G-buffer's position (w < 0: background) and what
+        is accumulated is 1 where a surface covers the pixel, 0 elsewhere."""
         tex = self.rc.resources[res_name]
         acc = self.acc.get(name)
         if acc is None or acc.size != tex.size:
@@ -100,6 +102,7 @@ class Session:
         tex.use(0)
         set_uniform(prog, "u_input", 0)
         set_uniform(prog, "u_weight", float(weight))
+        set_uniform(prog, "u_coverage", 1 if coverage else 0)
         w, h = tex.size
         prog.run((w + 7) // 8, (h + 7) // 8, 1)
         # the accumulator was stored into: visible to the next accumulation and the read-back
@@ -218,6 +221,8 @@ class Session:
                 for aov, res_name in outputs.items():
                     if res_name in self.rc.resources:
                         self._accumulate(aov, res_name, w)
+                if scene.film_transparent and "gbuffer.position" in written:
+                    self._accumulate("Alpha", "gbuffer.position", w, coverage=True)
             self.ctx.finish()
             # one-time work done inside this frame (shader compiles, BVH builds) is setup
             in_frame_setup = self._setup_clock() - setup_f0
@@ -240,7 +245,15 @@ class Session:
             raise Cancelled()
         self.rc.barrier_external(list(self.acc_keys()))
         image = self._read(self.acc["Combined"])
-        image[..., 3] = 1.0
+        alpha_note = None
+        if scene.film_transparent and "gbuffer.position" in written and "Alpha" in self.acc:
+            image[..., 3] = self._read(self.acc["Alpha"])[..., 0]  # the surfaces' coverage
+        elif scene.film_transparent and technique == "PT":
+            pass  # PT's colour alpha is its camera rays' coverage
+        else:
+            if scene.film_transparent:
+                alpha_note = f"film transparency: {technique} gives no coverage; the image is opaque"
+            image[..., 3] = 1.0
         aovs = {}
         for aov in outputs:
             if aov != "Combined" and aov in self.acc:
@@ -251,6 +264,8 @@ class Session:
         effects = sorted({e.value for p in plan.active for e in p.provides} & {e.value for e in analysis.needed})
         # what the scene export and the passes that ran approximated (e.g. DIRECT's many lights)
         warnings = list(scene.warnings) + [n for p in plan.active for n in getattr(p, "notes", ())]
+        if alpha_note:
+            warnings.append(alpha_note)
         return RenderResult(
             image=image, aovs=aovs, technique=technique, quality=quality, samples=self.acc_count,
             pass_ms=pass_ms, frame_ms=float(statistics.median(frame_times)) if frame_times else 0.0,

@@ -180,6 +180,65 @@ class WorldMap:
         return sh_basis(np.asarray(n, np.float64)) @ self.sh
 
 
+# A compact, bright region carrying at least this share of the map's light is a sun.
+SUN_MIN_SHARE = 0.2
+SUN_MAX_SOLID_ANGLE = 0.003  # sr (a disc of about 3.5 degrees across)
+
+
+def extract_sun(pixels: np.ndarray):
+    """Split a map into a sun and the rest: the connected region around the brightest texel
+    whose luminance exceeds both 5 % of that peak and 50x the map's median, when it is
+    compact (under SUN_MAX_SOLID_ANGLE) and carries at least SUN_MIN_SHARE of the map's
+    light. Returns ``(sun, residual)``: ``sun`` is None or a dict with ``direction`` (unit,
+    towards the sun), ``irradiance`` (RGB, W/m^2 at normal incidence: the region's radiance
+    integrated over its solid angle), ``angle`` (the angular diameter of a disc of the same
+    solid angle), ``share``; ``residual`` is the map with the region filled by the median of
+    the texels around it (the sky next to the sun)."""
+    px = np.asarray(pixels, np.float32)[..., :3]
+    H, W = px.shape[:2]
+    lum = _luminance(px.astype(np.float64))
+    sa = np.broadcast_to(pixel_solid_angles(W, H), (H, W))
+    total = float((lum * sa).sum())
+    if total <= 0.0:
+        return None, px
+    r, c = np.unravel_index(int(np.argmax(lum)), lum.shape)
+    peak = float(lum[r, c])
+    bright = lum > max(0.05 * peak, 50.0 * float(np.median(lum)))
+    region = np.zeros_like(bright)
+    region[r, c] = True
+    for _ in range(64):  # grow through bright texels (u wraps around)
+        grown = region.copy()
+        grown[1:] |= region[:-1]
+        grown[:-1] |= region[1:]
+        grown |= np.roll(region, 1, axis=1) | np.roll(region, -1, axis=1)
+        grown &= bright
+        if (grown == region).all():
+            break
+        region = grown
+    omega = float(sa[region].sum())
+    share = float((lum * sa)[region].sum()) / total
+    if omega > SUN_MAX_SOLID_ANGLE or share < SUN_MIN_SHARE:
+        return None, px
+    w = (px * sa[..., None])[region].astype(np.float64)  # radiance x solid angle per texel
+    irradiance = w.sum(axis=0)
+    dirs = directions(W, H)[region]
+    d = (dirs * _luminance(w)[:, None]).sum(axis=0)
+    d /= max(float(np.linalg.norm(d)), 1e-30)
+    ring = region.copy()
+    for _ in range(3):
+        g = ring.copy()
+        g[1:] |= ring[:-1]
+        g[:-1] |= ring[1:]
+        g |= np.roll(ring, 1, axis=1) | np.roll(ring, -1, axis=1)
+        ring = g
+    ring &= ~region
+    residual = px.copy()
+    residual[region] = np.median(px[ring], axis=0) if ring.any() else 0.0
+    angle = 2.0 * math.acos(max(-1.0, 1.0 - omega / (2.0 * math.pi)))
+    return {"direction": d, "irradiance": irradiance, "angle": angle, "share": share,
+            "solid_angle": omega}, residual
+
+
 _MAPS: dict[int, tuple[np.ndarray, WorldMap]] = {}
 
 
@@ -235,10 +294,11 @@ class WorldGPU:
         self.map = wm
         return True
 
-    def bind(self, prog, world) -> None:
+    def bind(self, prog, world, film_transparent: bool = False) -> None:
         from .gpu_scene import set_uniform
 
         wm = self.map
+        set_uniform(prog, "u_film_transparent", 1 if film_transparent else 0)
         self.texture.use(WORLD_TEXTURE_UNIT)
         set_uniform(prog, "u_world_map", WORLD_TEXTURE_UNIT)
         set_uniform(prog, "u_world_mode", 0 if wm is None else 1)

@@ -251,6 +251,7 @@ vec3 bsdf_hit_light_mis(vec3 o, vec3 d, float tmin, bool hit, SurfaceHit s, floa
         }
     }
     if (!hit) {
+        if (bsdf_pdf <= 0.0 && u_film_transparent != 0) return sum;  // a camera ray: no world seen
         float w = (bsdf_pdf > 0.0 && u_world_select > 0.0)
                 ? power_heuristic(bsdf_pdf, u_world_select * world_pdf(d)) : 1.0;
         return sum + world_radiance(d) * w;

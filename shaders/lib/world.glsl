@@ -16,6 +16,7 @@ uniform int u_world_mode;       // 0 = uniform colour, 1 = map
 uniform vec3 u_world_color;     // uniform radiance, or the map's solid-angle mean
 uniform vec3 u_world_sh[9];     // irradiance SH coefficients (map only)
 uniform float u_world_lods;     // highest mip level of the map
+uniform int u_film_transparent; // 1: the camera sees no world (Render > Film > Transparent)
 
 vec2 world_uv(vec3 d) {
     float u = 0.5 - atan(d.y, d.x) * (0.5 * INV_PI);
@@ -65,6 +66,7 @@ vec3 world_glossy(vec3 r, float alpha) {
 }
 
 vec3 world_background(ivec2 px, ivec2 size) {
+    if (u_film_transparent != 0) return vec3(0.0);
     if (u_world_mode == 0) return u_world_color;
     return world_radiance(camera_ray_dir(vec2(px) + 0.5, vec2(size)));
 }

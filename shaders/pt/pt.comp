@@ -43,7 +43,7 @@ uniform int u_pixel_sequence;  // in-pixel position: 0 white noise, 1 Halton(2,3
 uniform int u_lights_visible_camera;  // Blender's default for light objects: 0
 
 // ---------------------------------------------------------------- path tracing
-struct PathOut { vec3 color; vec3 direct; vec3 ind_diffuse; vec3 ind_glossy; };
+struct PathOut { vec3 color; vec3 direct; vec3 ind_diffuse; vec3 ind_glossy; float coverage; };
 
 void add(inout PathOut o, vec3 c, int depth, int first_lobe) {
     o.color += c;
@@ -72,6 +72,7 @@ void camera_ray(vec2 pix, out vec3 o, out vec3 d, out float tmin) {
 PathOut trace_path(vec2 pix, inout Rng rng) {
     PathOut out_;
     out_.color = vec3(0.0); out_.direct = vec3(0.0); out_.ind_diffuse = vec3(0.0); out_.ind_glossy = vec3(0.0);
+    out_.coverage = 0.0;
     vec3 o, d;
     float tmin;
     camera_ray(pix, o, d, tmin);
@@ -88,6 +89,7 @@ PathOut trace_path(vec2 pix, inout Rng rng) {
         // miss, the surface's emission on a hit; MIS-weighted against NEE (the shared block)
         vec3 Le = bsdf_hit_light_mis(o, d, tmin, hit, sh, bsdf_pdf, depth > 0 || u_lights_visible_camera != 0);
         if (max3(Le) > 0.0) add(out_, beta * Le, depth, first_lobe);
+        if (depth == 0 && hit) out_.coverage = 1.0;
         if (!hit || last) break;
         Surface s = sh.bsdf;
         vec3 V = -d;
@@ -148,6 +150,7 @@ void main() {
     if (px.x >= size.x || px.y >= size.y) return;
     PathOut acc;
     acc.color = vec3(0.0); acc.direct = vec3(0.0); acc.ind_diffuse = vec3(0.0); acc.ind_glossy = vec3(0.0);
+    acc.coverage = 0.0;
     for (int k = 0; k < u_spp; ++k) {
         Rng rng = rng_init(uvec2(px), u_sample * uint(u_spp) + uint(k), u_seed);
         vec2 j = rng_next2(rng);  // drawn in both modes: the path's random numbers stay the same
@@ -160,9 +163,11 @@ void main() {
         acc.direct += sanitize(r.direct);
         acc.ind_diffuse += sanitize(r.ind_diffuse);
         acc.ind_glossy += sanitize(r.ind_glossy);
+        acc.coverage += r.coverage;
     }
     float inv = 1.0 / float(max(u_spp, 1));
-    imageStore(o_color, px, vec4(acc.color * inv, 1.0));
+    // alpha: with a transparent film, the camera rays' coverage (the session's alpha)
+    imageStore(o_color, px, vec4(acc.color * inv, u_film_transparent != 0 ? acc.coverage * inv : 1.0));
     imageStore(o_direct, px, vec4(acc.direct * inv, 1.0));
     imageStore(o_ind_diffuse, px, vec4(acc.ind_diffuse * inv, 1.0));
     imageStore(o_ind_glossy, px, vec4(acc.ind_glossy * inv, 1.0));

@@ -262,10 +262,10 @@ float sphere_area_mix() { return u_bias_mode == 0 ? SPHERE_AREA_MIX : 0.0; }
 // Solid-angle pdf with which light sampling (select_light + sample_light) produces sample x
 // from sh (delta lights: the selection probability).
 float light_strategy_pdf(Shading sh, Sample x, float mesh_tri_pdf) {
-    if (x.li < 0) return 0.0;
+    if (x.li < 0) return u_world_select > 0.0 ? u_world_select * world_pdf(x.y) : 0.0;  // the world map
     Light L = lights[x.li];
     int type = int(L.pos_type.w + 0.5);
-    float sel = light_pdf(x.li);
+    float sel = nee_light_prob(x.li);
     if (type == LIGHT_SUN) return L.dir_radius.w <= 1e-6 ? sel : sel * cone_pdf(cos(L.dir_radius.w));
     if (type == LIGHT_POINT || type == LIGHT_SPOT) {
         float r = L.dir_radius.w;
@@ -312,12 +312,22 @@ bool is_glossy(Shading sh) {
     return sh.s.roughness < u_glossy_rough && lobe_weights(sh.s, max(dot(sh.N, sh.V), 1e-4)).y >= 0.5;
 }
 
-// One light sample by power as a Sample; pl = its solid-angle pdf (delta: selection prob.)
+// One light sample by power (or a direction towards the world map by its luminance, with
+// the probability shade_direct gives it) as a Sample; pl = its solid-angle pdf (delta:
+// selection prob.)
 bool light_candidate(Shading sh, vec4 u, out Sample x, out float pl) {
     x.li = -1; x.y = vec3(0.0); x.n = vec3(0.0, 0.0, 1.0); x.Le = vec3(0.0); pl = 0.0;
+    if (u.x < u_world_select) {
+        float pw;
+        x.y = world_sample(u.yz, pw);
+        x.Le = world_radiance(x.y);
+        pl = u_world_select * pw;
+        return pl > 0.0 && max3(x.Le) > 0.0;
+    }
     if (u_light_count <= 0) return false;
     float sel;
-    int li = select_light(u.x, sel);
+    int li = select_light((u.x - u_world_select) / (1.0 - u_world_select), sel);
+    sel *= 1.0 - u_world_select;
     Light L = lights[li];
     int type = int(L.pos_type.w + 0.5);
     float amix = (type == LIGHT_POINT || type == LIGHT_SPOT) && L.dir_radius.w > 0.0 ? sphere_area_mix() : 0.0;
@@ -405,7 +415,7 @@ bool bsdf_candidate(Shading sh, vec3 u, bool analytic, out Sample x, out float p
         vec3 E = hs.bsdf.emission;
         float tri_prob = area * (E.r + E.g + E.b) / 3.0 * PI / max(L.color.w, 1e-20);
         x.li = li; x.y = hs.position; x.n = hs.geo_normal; x.Le = E;
-        pl = light_pdf(li) * tri_prob * area_to_solid_angle_pdf(sh.p, hs.position, hs.geo_normal, area);
+        pl = nee_light_prob(li) * tri_prob * area_to_solid_angle_pdf(sh.p, hs.position, hs.geo_normal, area);
         return true;
     }
     for (int i = 0; i < u_light_count && analytic; ++i) {  // a miss: sun disks, then the world
@@ -421,6 +431,7 @@ bool bsdf_candidate(Shading sh, vec3 u, bool analytic, out Sample x, out float p
     x.Le = world_radiance(d);
     if (max3(x.Le) <= 0.0) return false;
     x.li = -1; x.y = d;
+    pl = light_strategy_pdf(sh, x, 0.0);  // a world map is also light-sampled
     return true;
 }
 
@@ -429,7 +440,7 @@ Reservoir candidates(Shading sh, inout Rng rng) {
     Reservoir r = empty_reservoir();
     bool glossy = u_bsdf_glossy > 0 && is_glossy(sh);
     bool analytic = u_bsdf_analytic == 1 || glossy;
-    float ML = float(u_light_count > 0 ? u_light_cands : 0);
+    float ML = float(u_light_count > 0 || u_world_select > 0.0 ? u_light_cands : 0);
     float MB = float(glossy ? max(u_bsdf_cands, u_bsdf_glossy) : u_bsdf_cands);
     for (int k = 0; k < int(ML); ++k) {
         vec4 u = rng_next4(rng);

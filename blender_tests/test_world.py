@@ -1,0 +1,184 @@
+"""Worlds as artists build them: bundled HDRIs through an Environment Texture with a Mapping
+rotation, a Sky Texture, a procedural gradient. Checked against Cycles:
+
+* the map's convention: a world whose colour is its own direction (Texture Coordinate
+  Generated), evaluated by Cycles into the map, equals the map's pixel directions;
+* the sampling tables: importance sampling by the map reproduces the map's mean, and the pdf
+  integrates to one (bpy-free);
+* PT against Cycles full and DIRECT against Cycles direct, relMSE <= 0.05, under each of the
+  eight bundled HDRIs, a Sky Texture and a gradient; every registered technique on one HDRI
+  scene gives finite pixels and is never worse than DIRECT against full;
+* exporting leaves the file unchanged, and an unchanged world is evaluated only once.
+Images (ours, Cycles, error) go to blender_tests/_artifacts/world/ for a person to look at.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+pytest.importorskip("moderngl")
+
+import scenes_world as SW  # noqa: E402
+from _helpers import export  # noqa: E402
+
+from gi_preview.blender import reference as R  # noqa: E402
+from gi_preview.blender import world_bake  # noqa: E402
+from gi_preview.compare import imageio, metrics  # noqa: E402
+from gi_preview.render import session, techniques  # noqa: E402
+from gi_preview.render.world_map import WorldMap, directions, pixel_solid_angles  # noqa: E402
+
+RES = 40
+REF_SPP = 512
+PT_SAMPLES = 64
+DIRECT_SAMPLES = 32
+BOUND = 0.05
+ART = Path(__file__).resolve().parent / "_artifacts" / "world"
+
+
+def _png(name, img):
+    ART.mkdir(parents=True, exist_ok=True)
+    x = np.clip(img[..., :3] / (1.0 + img[..., :3]), 0, 1) ** (1 / 2.2)
+    imageio.write_png(str(ART / f"{name}.png"), x)
+
+
+def _compare(sc, name, techs=(("PT", "full", PT_SAMPLES), ("DIRECT", "direct", DIRECT_SAMPLES))):
+    data = export(sc)
+    assert data.world.map is not None and data.world.exact, data.world.warnings
+    R.ensure_oiio()
+    out = {}
+    for tech, kind, samples in techs:
+        ref = R.get_reference(sc, kind, REF_SPP).image[..., :3]
+        img = session.render(data, tech, 1, samples).image[..., :3]
+        assert np.isfinite(img).all()
+        out[tech] = metrics.relmse(img, ref), metrics.relmse(img, R.get_reference(sc, "full", REF_SPP).image[..., :3])
+        print(f"{name} {tech}: relMSE {out[tech][0]:.4f} against Cycles {kind}, mean {img.mean() / ref.mean():.3f}")
+        _png(f"{name}_{tech}", img)
+        _png(f"{name}_{tech}_cycles_{kind}", ref)
+        _png(f"{name}_{tech}_error", np.abs(img - ref) * 4.0)
+    return out
+
+
+def test_map_convention_matches_cycles():
+    """Cycles' evaluation of a world that shows its own direction is the map's directions."""
+    sc = bpy.data.scenes.new("Direction world")
+    wo = bpy.data.worlds.new("Direction")
+    sc.world = wo
+    nt = wo.node_tree
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    nt.links.new(tc.outputs["Generated"], nt.nodes["Background"].inputs["Color"])
+    px = world_bake.bake_world(wo, size=(64, 32), spp=4, cache_dir=str(ART.parent / "_world_cache"))
+    ref = directions(64, 32)
+    # a pixel's mean direction over its footprint is shorter than a unit vector near the poles:
+    # compare directions
+    got = px / np.maximum(np.linalg.norm(px, axis=-1, keepdims=True), 1e-9)
+    ang = np.degrees(np.arccos(np.clip((got * ref).sum(-1), -1, 1)))
+    assert ang.max() < 2.0, f"largest angle between Cycles' map and ours: {ang.max():.2f} deg"
+
+
+def test_sampling_tables_are_consistent():
+    rng = np.random.default_rng(3)
+    H, W = 64, 128
+    px = np.full((H, W, 3), 0.2, np.float32)
+    px[44:46, 30:32] = (800.0, 700.0, 500.0)  # a small, bright sun
+    wm = WorldMap(px)
+    d, pdf = wm.sample(rng.random((100000, 2)))
+    est = (wm.radiance(d) / pdf[:, None]).mean(axis=0) / (4 * np.pi)
+    np.testing.assert_allclose(est, wm.mean, rtol=0.01)
+    # the pdf integrates to one over the sphere (quadrature on a grid 4x finer than the tables')
+    gw, gh = wm.grid
+    d_fine = directions(4 * gw, 4 * gh)
+    integral = float((wm.pdf(d_fine.reshape(-1, 3)).reshape(4 * gh, 4 * gw) * pixel_solid_angles(4 * gw, 4 * gh)).sum())
+    assert abs(integral - 1.0) < 1e-3, integral
+    # sampling by luminance: most samples go to the sun, which carries most of the light
+    sun = wm.radiance(d)[:, 0] > 100
+    assert sun.mean() > 0.5
+
+
+@pytest.mark.parametrize("hdri", SW.HDRIS)
+def test_bundled_hdri_pt_and_direct_match_cycles(hdri):
+    sc = SW.hdri_scene(hdri, res=RES)
+    got = _compare(sc, f"hdri_{hdri}")
+    assert got["PT"][0] <= BOUND, f"{hdri}: PT relMSE {got['PT'][0]:.4f}"
+    assert got["DIRECT"][0] <= BOUND, f"{hdri}: DIRECT relMSE against Cycles direct {got['DIRECT'][0]:.4f}"
+
+
+@pytest.mark.parametrize("sky_type", SW.SKY_TYPES)
+def test_sky_texture_pt_and_direct_match_cycles(sky_type):
+    sc = SW.sky_scene(sky_type, res=RES)
+    # the sun's caustics (the glossy ball and metal box under the roof) need more PT samples
+    got = _compare(sc, f"sky_{sky_type.lower()}", techs=(("PT", "full", 4 * PT_SAMPLES),
+                                                          ("DIRECT", "direct", DIRECT_SAMPLES)))
+    assert got["PT"][0] <= BOUND, f"{sky_type}: PT relMSE {got['PT'][0]:.4f}"
+    assert got["DIRECT"][0] <= BOUND, f"{sky_type}: DIRECT relMSE {got['DIRECT'][0]:.4f}"
+
+
+def test_procedural_world_pt_matches_cycles():
+    sc = SW.gradient_scene(res=RES)
+    got = _compare(sc, "gradient", techs=(("PT", "full", PT_SAMPLES),))
+    assert got["PT"][0] <= BOUND, f"gradient: PT relMSE {got['PT'][0]:.4f}"
+
+
+def test_every_technique_under_an_hdri():
+    """Finite, and never worse than DIRECT against Cycles full (DIRECT has no indirect light)."""
+    sc = SW.hdri_scene("courtyard", res=32, roof=True)
+    data = export(sc)
+    R.ensure_oiio()
+    full = R.get_reference(sc, "full", 256).image[..., :3]
+    base = metrics.relmse(session.render(data, "DIRECT", 1, 16).image[..., :3], full)
+    rows = []
+    for tech in [t.id for t in techniques.available()]:
+        if tech == "DIRECT":
+            continue
+        img = session.render(data, tech, 1, 16).image[..., :3]
+        assert np.isfinite(img).all(), tech
+        e = metrics.relmse(img, full)
+        rows.append((tech, e, float(img.mean() / full.mean())))
+        _png(f"every_{tech}", img)
+    worse = [(t, round(e, 4)) for t, e, _ in rows if e > base * 1.05 + 1e-3]
+    assert not worse, f"worse than DIRECT ({base:.4f}) against full: {worse}"
+
+
+def test_export_leaves_the_file_unchanged_and_evaluates_a_world_once(monkeypatch):
+    sc = SW.hdri_scene("studio", res=16)
+    counts = {a: len(getattr(bpy.data, a)) for a in ("worlds", "images", "scenes", "objects", "cameras", "node_groups")}
+    export(sc)
+    assert counts == {a: len(getattr(bpy.data, a)) for a in counts}
+
+    def fail(*a, **k):
+        raise AssertionError("the world was evaluated again")
+
+    monkeypatch.setattr(world_bake, "_bake", fail)
+    data = export(sc)  # same world: from the cache
+    assert data.world.map is not None
+    # a changed world is evaluated again
+    sc.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 2.0
+    with pytest.raises(AssertionError, match="evaluated again"):
+        export(sc)
+
+
+def test_film_transparent_hides_the_world_from_the_camera_only():
+    """Render > Film > Transparent: background RGB 0 and alpha 0, surfaces still lit by the
+    world (as in the opaque render), alpha = coverage (PT's camera rays and DIRECT's G-buffer
+    agree at the edges)."""
+    sc = SW.hdri_scene("sunset", res=32)
+    opaque = export(sc)
+    sc.render.film_transparent = True
+    data = export(sc)
+    assert data.film_transparent and not opaque.film_transparent
+    alphas = {}
+    for tech, n in (("PT", 32), ("DIRECT", 16)):
+        a = session.render(opaque, tech, 1, n).image
+        b = session.render(data, tech, 1, n).image
+        assert np.all(a[..., 3] == 1.0)
+        bg = b[..., 3] == 0.0
+        assert 0.2 < bg.mean() < 0.8, f"{tech}: background fraction {bg.mean():.2f}"
+        assert np.all(b[bg][:, :3] == 0.0), f"{tech}: the world shows through a transparent film"
+        solid = b[..., 3] == 1.0
+        ratio = float(b[solid][:, :3].mean() / a[solid][:, :3].mean())
+        assert abs(ratio - 1.0) < 0.08, f"{tech}: surfaces {ratio:.3f} of the opaque render's"
+        alphas[tech] = b[..., 3]
+    assert float(np.abs(alphas["PT"] - alphas["DIRECT"]).mean()) < 0.03
