@@ -559,10 +559,31 @@ def test_world(scene):
     bg = scene.world.node_tree.nodes["Background"]
     scene.world.node_tree.links.new(sky.outputs["Color"], bg.inputs["Color"])
     scene.world.color = (0.1, 0.2, 0.3)
-    sd = export(scene)
-    assert not sd.world.exact
+    sd = export(scene)  # any other tree: Cycles evaluates it into a map (test_world.py measures it)
+    assert sd.world.exact and sd.world.map is not None and sd.world.source == "cycles"
+    assert sd.world.map.ndim == 3 and sd.world.map.shape[2] == 3 and float(sd.world.map.max()) > 0
+    # a world Cycles cannot evaluate falls back to the viewport colour, with the reason
+    from gi_preview.blender import world_bake
+
+    def broken(*a, **k):
+        raise RuntimeError("Cycles could not evaluate world 'bg': out of memory")
+
+    world_bake._memory.clear()
+    old, world_bake._start = world_bake._start, broken
+    cache = world_bake._cache_dir()
+    moved = []
+    try:
+        for f in os.listdir(cache):  # no cached map either
+            os.replace(os.path.join(cache, f), os.path.join(cache, f + ".aside"))
+            moved.append(f)
+        sd = export(scene)
+    finally:
+        world_bake._start = old
+        for f in moved:
+            os.replace(os.path.join(cache, f + ".aside"), os.path.join(cache, f))
+    assert not sd.world.exact and sd.world.map is None
     np.testing.assert_allclose(sd.world.color, (0.1, 0.2, 0.3), rtol=1e-6)
-    assert "ShaderNodeTexSky" in sd.world.warnings[0] and sd.world.warnings[0] in sd.warnings
+    assert "out of memory" in sd.world.warnings[0] and sd.world.warnings[0] in sd.warnings
 
 
 # ------------------------------------------------------------------ camera

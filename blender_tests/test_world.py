@@ -138,6 +138,8 @@ def test_every_technique_under_an_hdri():
         e = metrics.relmse(img, full)
         rows.append((tech, e, float(img.mean() / full.mean())))
         _png(f"every_{tech}", img)
+    for t, e, m in rows:
+        print(f"courtyard pavilion {t}: relMSE {e:.4f} against Cycles full, mean {m:.3f} (DIRECT {base:.4f})")
     worse = [(t, round(e, 4)) for t, e, _ in rows if e > base * 1.05 + 1e-3]
     assert not worse, f"worse than DIRECT ({base:.4f}) against full: {worse}"
 
@@ -151,7 +153,7 @@ def test_export_leaves_the_file_unchanged_and_evaluates_a_world_once(monkeypatch
     def fail(*a, **k):
         raise AssertionError("the world was evaluated again")
 
-    monkeypatch.setattr(world_bake, "_bake", fail)
+    monkeypatch.setattr(world_bake, "_start", fail)
     data = export(sc)  # same world: from the cache
     assert data.world.map is not None
     # a changed world is evaluated again
@@ -182,3 +184,52 @@ def test_film_transparent_hides_the_world_from_the_camera_only():
         assert abs(ratio - 1.0) < 0.08, f"{tech}: surfaces {ratio:.3f} of the opaque render's"
         alphas[tech] = b[..., 3]
     assert float(np.abs(alphas["PT"] - alphas["DIRECT"]).mean()) < 0.03
+
+
+def test_viewport_export_never_waits_for_the_world():
+    """The viewport's exporter returns at once with the viewport colour while Cycles
+    evaluates a new world in a child process, and has the map on the next export after it."""
+    import random
+    import time
+
+    from gi_preview.blender.export import SceneExporter
+
+    sc = SW.gradient_scene(res=16)
+    sc.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.5 + random.random() * 1e-3
+    key = world_bake.world_key(sc.world, world_bake.map_size(sc.world), world_bake.DEFAULT_SPP)
+    cached = Path(world_bake._cache_dir()) / f"{key}.exr"
+    ex = SceneExporter()
+    try:
+        first = ex.export(R.evaluated_depsgraph(sc), None)
+        assert first.world.map is None and not first.world.exact
+        assert any("being evaluated" in w for w in first.warnings)
+        t0 = time.monotonic()
+        while world_bake.pending() and time.monotonic() - t0 < 120:
+            time.sleep(0.2)
+        second = ex.export(R.evaluated_depsgraph(sc), None)
+        assert second.world.map is not None and second.world.exact
+    finally:
+        cached.unlink(missing_ok=True)
+
+
+def test_scene_support_report_names_what_is_not_exact():
+    from gi_preview.render.support import scene_support
+
+    sc = SW.hdri_scene("forest", res=16)
+    rep = scene_support(export(sc))
+    assert rep["world"]["status"] == "exact" and "evaluated by Cycles" in rep["world"]["detail"]
+    assert rep["counts"]["materials_exact"] == rep["counts"]["materials"] == 4
+    assert rep["summary"].startswith("Scene: 4 of 4 materials exact")
+    # a material whose surface is a node GI Preview does not render: unsupported, node named
+    m = bpy.data.materials.new("Toon")
+    nt = m.node_tree
+    toon = nt.nodes.new("ShaderNodeBsdfToon")
+    nt.links.new(toon.outputs[0], nt.nodes["Material Output"].inputs["Surface"])
+    sc.objects["Diffuse ball"].data.materials[0] = m
+    rep = scene_support(export(sc))
+    assert rep["materials"]["Toon"]["status"] == "unsupported"
+    assert "ShaderNodeBsdfToon" in rep["materials"]["Toon"]["detail"]
+    assert "1 unsupported: Toon" in rep["summary"]
+    # a sky's sun becomes a sun light: the world is approximated, and says how
+    rep = scene_support(export(SW.sky_scene("MULTIPLE_SCATTERING", res=16)))
+    assert rep["world"]["status"] == "approximated" and "sun light" in rep["world"]["detail"]

@@ -273,6 +273,14 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
     export_ms = (time.perf_counter() - t0) * 1e3
     fp = sd.fingerprint()
     log(f"exported the scene in {export_ms:.0f} ms")
+    support = importlib.import_module(pn + ".render.support").scene_support(sd)
+    log(support["summary"])
+    for kind in ("materials", "lights"):
+        for name, e in support[kind].items():
+            if e["status"] != "exact":
+                log(f"  {kind[:-1]} '{name}': {e['status']}: {e['detail']}")
+    if support["world"]["status"] != "exact" or support["world"]["detail"] != "uniform colour":
+        log(f"  world: {support['world']['status']}: {support['world']['detail']}")
 
     # ---- which references
     def kinds_for(tech):
@@ -442,6 +450,7 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
         "references": {k: r.info() for k, r in refs.items()},
         "reference_settings": getattr(reference, "FAIR_SETTINGS_SUMMARY", ""),
         "export_ms": export_ms,
+        "scene_support": support,
         "baselines": baselines,
         "baselines_reference": primary,
         "baselines_setup": baseline_info,

@@ -29,6 +29,7 @@ from ..render import probe_overlay, session, techniques
 from ..render.gl import GLUnavailableError
 from ..render.scene_data import Camera, SceneError
 from ..render.shaders import ShaderError
+from ..render.support import scene_support
 from .export import SceneExporter, export_scene
 
 log = logging.getLogger(__name__)
@@ -154,6 +155,7 @@ def final_render(engine, depsgraph):
         "setup_ms": round(res.setup_ms, 3), "warmup_frames": res.warmup_frames,
         "history_resets": list(res.history_resets),
         "passes": written, "available_passes": [p.name for p in layer.passes],
+        "scene_support": scene_support(data),
     }
     try:
         result.stamp_data_add_field("GI Preview", json.dumps(info))

@@ -458,9 +458,15 @@ class _Exporter:
 
         warnings = []
         try:
-            px = world_bake.bake_world(wo)
+            # the viewport (an exporter with a cache) never waits for Cycles
+            px = world_bake.bake_world(wo, wait=self.cache is None)
         except (RuntimeError, OSError, subprocess.SubprocessError) as exc:
             msg = f"World '{wo.name}': {exc}; using the viewport colour"
+            self.warn(msg)
+            self.data.world = World(color=fallback_color, exact=False, warnings=[msg])
+            return
+        if px is None:
+            msg = f"World '{wo.name}': being evaluated by Cycles; the viewport colour until it is ready"
             self.warn(msg)
             self.data.world = World(color=fallback_color, exact=False, warnings=[msg])
             return

@@ -69,6 +69,16 @@ class GIPREVIEW_RENDER_PT_last(GIPreviewPanel, bpy.types.Panel):
             return
         col.label(text=f"{info['technique']} q{info['quality']}: {info['samples']} samples, "
                        f"{info['frame_ms']:.1f} ms/frame")
+        sup = info.get("scene_support")
+        if sup:
+            col.label(text=sup["summary"], icon="CHECKMARK" if sup["counts"]["materials_exact"] ==
+                      sup["counts"]["materials"] else "INFO")
+            for kind in ("materials", "lights"):
+                for name, e in sup[kind].items():
+                    if e["status"] != "exact":
+                        col.label(text=f"  {name}: {e['status']}: {e['detail']}")
+            if sup["world"]["status"] != "exact":
+                col.label(text=f"  World: {sup['world']['status']}: {sup['world']['detail']}")
         for name, ms in info.get("pass_ms", {}).items():
             col.label(text=f"  {name}: {ms:.2f} ms")
         for s in info.get("skipped_passes", []):

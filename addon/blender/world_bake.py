@@ -29,6 +29,7 @@ import shutil
 import subprocess
 import sys
 import tempfile
+import time
 
 DEFAULT_SIZE = (1024, 512)
 MAX_WIDTH = 2048
@@ -163,10 +164,72 @@ def _cache_dir() -> str:
     return d
 
 
+class _Job:
+    """One child process evaluating a world (its temporary folder, log and output)."""
+
+    def __init__(self, world, size, spp, out_path):
+        import bpy
+
+        self.world_name = world.name
+        self.out_path = out_path
+        self.tmp = tempfile.mkdtemp(prefix="gi_preview_world_")
+        lib = os.path.join(self.tmp, "world.blend")
+        bpy.data.libraries.write(lib, {world}, path_remap="ABSOLUTE", fake_user=True)
+        self.exr = os.path.join(self.tmp, "world.exr")
+        args = ["--child", "--blend", lib, "--world", world.name, "--out", self.exr,
+                "--width", str(size[0]), "--height", str(size[1]), "--spp", str(int(spp))]
+        script = os.path.abspath(__file__)
+        if bpy.app.binary_path:
+            cmd = [bpy.app.binary_path, "-b", "--factory-startup", "-noaudio", "-P", script, "--"] + args
+        else:
+            cmd = [sys.executable, script] + args
+        self.log_path = os.path.join(self.tmp, "log.txt")
+        self._log = open(self.log_path, "w")
+        self.started = time.monotonic()
+        self.proc = subprocess.Popen(cmd, stdout=self._log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+
+    def done(self) -> bool:
+        return self.proc.poll() is not None
+
+    def wait(self) -> None:
+        try:
+            self.proc.wait(timeout=max(1.0, TIMEOUT_S - (time.monotonic() - self.started)))
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+
+    def result(self):
+        """The map (after ``done``); raises RuntimeError with the child's last lines."""
+        import numpy as np
+
+        from ..compare.imageio import read_exr
+
+        try:
+            self._log.close()
+            if self.proc.returncode != 0 or not os.path.isfile(self.exr):
+                with open(self.log_path, errors="replace") as f:
+                    tail = [ln for ln in f.read().strip().splitlines() if ln.strip()][-6:]
+                raise RuntimeError(f"Cycles could not evaluate world '{self.world_name}': " + " | ".join(tail))
+            px = np.ascontiguousarray(read_exr(self.exr)[..., :3], np.float32)
+            try:
+                shutil.copyfile(self.exr, self.out_path + ".part")
+                os.replace(self.out_path + ".part", self.out_path)
+            except OSError:
+                pass
+            return px
+        finally:
+            shutil.rmtree(self.tmp, ignore_errors=True)
+
+
+_jobs: dict[str, _Job] = {}
+
+
 def bake_world(world, *, size: tuple[int, int] | None = None, spp: int = DEFAULT_SPP,
-               cache_dir: str | None = None):
+               cache_dir: str | None = None, wait: bool = True):
     """The world's radiance map (H, W, 3) float32, row 0 at the bottom (cached). Raises
-    RuntimeError with Cycles' message when the child fails."""
+    RuntimeError with Cycles' message when the child fails. With ``wait=False`` (the
+    viewport) a world not yet evaluated returns None at once: the child runs on, and when it
+    ends the world is tagged for an update, so the next export finds the map."""
     import numpy as np
 
     from ..compare.imageio import read_exr
@@ -185,45 +248,50 @@ def bake_world(world, *, size: tuple[int, int] | None = None, spp: int = DEFAULT
             return px
         except Exception:  # noqa: BLE001 - a damaged cache file: bake again
             pass
-    px = _bake(world, size, spp, path)
+    job = _jobs.get(key)
+    if job is None:
+        job = _jobs[key] = _start(world, size, spp, path)
+    if wait:
+        job.wait()
+    elif not job.done():
+        _watch()
+        return None
+    del _jobs[key]
+    px = job.result()
     while len(_memory) >= 8:
         _memory.pop(next(iter(_memory)))
     _memory[key] = px
     return px
 
 
-def _bake(world, size, spp, out_path):
+def _start(world, size, spp, out_path) -> _Job:
+    return _Job(world, size, spp, out_path)
+
+
+def pending() -> list[str]:
+    """Names of the worlds being evaluated now."""
+    return [j.world_name for j in _jobs.values() if not j.done()]
+
+
+def _watch() -> None:
     import bpy
-    import numpy as np
 
-    from ..compare.imageio import read_exr
+    if not bpy.app.timers.is_registered(_poll):
+        bpy.app.timers.register(_poll, first_interval=0.25)
 
-    tmp = tempfile.mkdtemp(prefix="gi_preview_world_")
-    try:
-        lib = os.path.join(tmp, "world.blend")
-        bpy.data.libraries.write(lib, {world}, path_remap="ABSOLUTE", fake_user=True)
-        exr = os.path.join(tmp, "world.exr")
-        args = ["--child", "--blend", lib, "--world", world.name, "--out", exr,
-                "--width", str(size[0]), "--height", str(size[1]), "--spp", str(int(spp))]
-        script = os.path.abspath(__file__)
-        if bpy.app.binary_path:
-            cmd = [bpy.app.binary_path, "-b", "--factory-startup", "-noaudio", "-P", script, "--"] + args
-        else:
-            cmd = [sys.executable, script] + args
-        env = dict(os.environ)
-        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT_S, env=env)
-        if proc.returncode != 0 or not os.path.isfile(exr):
-            tail = (proc.stderr or proc.stdout or "").strip().splitlines()[-6:]
-            raise RuntimeError(f"Cycles could not evaluate world '{world.name}': " + " | ".join(tail))
-        px = np.ascontiguousarray(read_exr(exr)[..., :3], np.float32)
-        try:
-            shutil.copyfile(exr, out_path + ".part")
-            os.replace(out_path + ".part", out_path)
-        except OSError:
-            pass
-        return px
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
+
+def _poll():
+    """Timer: tag the world of every finished evaluation for an update (the viewport then
+    exports again and picks the map up); runs while evaluations are under way."""
+    import bpy
+
+    for job in list(_jobs.values()):
+        if job.done() and not getattr(job, "tagged", False):
+            job.tagged = True
+            wo = bpy.data.worlds.get(job.world_name)
+            if wo is not None:
+                wo.update_tag()
+    return 0.25 if any(not getattr(j, "tagged", False) for j in _jobs.values()) else None
 
 
 # ------------------------------------------------------------------ child side
