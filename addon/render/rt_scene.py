@@ -47,7 +47,7 @@ def check_buffer_sizes(arrays: dict, limit: int, triangles: int) -> None:
     if not too_big:
         return
     name, size = max(too_big.items(), key=lambda kv: kv[1])
-    per_tri = max(arrays["verts"].nbytes // max(triangles, 1), 1)
+    per_tri = max(max(arrays[k].nbytes for k in ("verts", "normals") if k in arrays) // max(triangles, 1), 1)
     raise SceneError(
         f"The scene has {triangles:,} triangles: its ray-tracing buffer '{name}' needs "
         f"{size / 2**20:.0f} MiB, more than this GPU driver allows in one shader storage block "
@@ -125,7 +125,7 @@ class RtBuffers:
 
 
 # ---------------------------------------------------------------------------- SceneRT
-VERT_BYTES_PER_TRIANGLE = 48  # bvh.glsl: three vec4 corners per triangle (the largest buffer)
+VERT_BYTES_PER_TRIANGLE = 96  # bvh.glsl: three corners of two vec4 (normal + uv.x, tangent) per triangle (the largest buffer)
 
 
 def geometry_key(scene) -> str:
@@ -186,7 +186,7 @@ def light_table(scene, light_array: np.ndarray, count: int, emitter_groups) -> n
 
 def check_triangle_budget(scene, limit: int) -> None:
     """Refuse, with a SceneError naming the limit, a scene whose BVH vertex buffer would exceed
-    the GL context's GL_MAX_SHADER_STORAGE_BLOCK_SIZE (128 MiB on llvmpipe: ~2.8 M triangles),
+    the GL context's GL_MAX_SHADER_STORAGE_BLOCK_SIZE (128 MiB on llvmpipe: ~1.4 M triangles),
     before spending time building it. RtBuffers checks every buffer again after the build."""
     tris = sum(scene.meshes[i].triangle_count for i in sorted({inst.mesh for inst in scene.instances}))
     need = tris * VERT_BYTES_PER_TRIANGLE
@@ -276,6 +276,7 @@ class SceneRT:
         self.buffers.bind()
         self._select_buf.bind_to_storage_buffer(self.bindings["light_select"])
         set_uniform(prog, "u_rt_world", tuple(float(x) for x in gs.scene.world.color))
+        # u_alpha_test (GPUScene.bind): rays test alpha only when some material has holes
 
     @property
     def nbytes(self) -> int:

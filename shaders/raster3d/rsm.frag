@@ -40,7 +40,8 @@ void main() {
     vec3 n = normalize(v_normal);
     if (dot(n, toL) < 0.0) n = -n;
     float NoL = clamp(dot(n, toL), 0.0, 1.0);
-    Surface s = make_surface(m, material_base_color(u_textures, m, v_uv));
+    MaterialSample ms = sample_material(u_textures, m, v_uv);
+    Surface s = make_surface(material_at(m, ms), ms.base_color);
     vec3 rho = diffuse_albedo(s, max(NoL, 1e-4));
     vec3 flux;
     float area;  // the texel's surface area (the LPV geometry volume's blockers)

@@ -121,7 +121,9 @@ Shading make_shading(vec3 P, vec3 N, vec3 Ng, Surface s, bool valid) {
 
 Shading load(ivec2 q) {
     vec4 pos = texelFetch(u_gb_position, q, 0);
-    Surface s = make_surface(scene_material(int(pos.w + 0.5)), texelFetch(u_gb_albedo, q, 0).rgb);
+    Material m = scene_material(int(pos.w + 0.5));
+    Surface s = gbuffer_surface(m, texelFetch(u_gb_albedo, q, 0), texelFetch(u_gb_normal, q, 0),
+                                texelFetch(u_gb_geonormal, q, 0), m.emission.rgb);
     return make_shading(pos.xyz, texelFetch(u_gb_normal, q, 0).xyz, texelFetch(u_gb_geonormal, q, 0).xyz, s,
                         pos.w >= 0.0);
 }
