@@ -9,8 +9,13 @@
   is stored once. Curves, text, surfaces and metaballs come through ``to_mesh()`` when the
   depsgraph does not already give their mesh as an instance.
 * Materials: the Principled BSDF (and Emission / Diffuse / Glossy / Metallic BSDFs) behind
-  the Cycles output node; an Image Texture on Base Color becomes a ``Texture``. Anything
-  else falls back to the material's viewport colour with ``exact=False`` and a warning.
+  the Cycles output node. Each input is read through the node evaluator
+  (``material_nodes.Capture`` -> ``render/node_eval.py``): a constant, an image used as is
+  (or one of its channels), or a bake of the nodes over the UV square (see
+  docs/ARCHITECTURE.md, "Materials and textures"); a Normal Map node gives a tangent-space
+  map and the mesh's MikkTSpace tangents. A node that depends on more than the UV map falls
+  back for its input only (``exact=False``, ``support``, a warning naming it); another
+  surface shader falls back to the material's viewport colour.
 * Lights in Cycles' units (checked against Cycles renders, see blender_tests/test_export.py):
   point/spot intensity ``P*color/(4 pi)`` W/sr, sun irradiance ``E*color`` W/m^2, area
   radiance ``P*color/(pi*A)`` (``normalize``) or ``P*color/pi``; all times ``2**exposure``

@@ -306,10 +306,19 @@ class SceneData:
                 h.update(np.ascontiguousarray(x).tobytes())
             elif dataclasses.is_dataclass(x):
                 for f in dataclasses.fields(x):
-                    if f.name in ("warnings", "instance_id"):  # do not change the image
+                    if f.name in ("warnings", "instance_id", "support"):  # do not change the image
                         continue
+                    v = getattr(x, f.name)
+                    if f.name in _HASHED_WHEN_SET and (v is None or (isinstance(v, dict) and not v)):
+                        continue  # unset: the fingerprint of a scene without it is unchanged
                     h.update(f.name.encode())
-                    add(getattr(x, f.name))
+                    add(v)
+            elif isinstance(x, dict):
+                h.update(b"{")
+                for k in sorted(x):
+                    h.update(repr(k).encode())
+                    add(x[k])
+                h.update(b"}")
             elif isinstance(x, (list, tuple)):
                 h.update(b"[")
                 for y in x:
@@ -320,6 +329,11 @@ class SceneData:
 
         add(self)
         return h.hexdigest()
+
+
+# Fields hashed only when set (not None, not empty), so scenes that do not use them keep their
+# fingerprints (and the Cycles references cached under them).
+_HASHED_WHEN_SET = ("maps", "tangents")
 
 
 class SceneError(ValueError):
