@@ -417,7 +417,7 @@ class _Exporter:
             r = _MaterialReader(self, mat, node)
             col = node.inputs.get("Color") or node.inputs.get("Base Color")
             m = Material(name=mat.name, metallic=1.0, specular_ior_level=0.5)
-            r.scalar(m, "roughness", node.inputs["Roughness"])
+            r.scalar(m, "roughness", node.inputs["Roughness"], "roughness")
             r.normal(m, node.inputs["Normal"])
             r.color(m, "base_color", col)
             return r.finish(m)
