@@ -265,3 +265,73 @@ def test_gltf_texture_set_matches_cycles(tmp_path):
             assert e <= MAX_RELMSE, f"{tech} relMSE {e:.4f} > {MAX_RELMSE}"
     finally:
         bpy.data.scenes.remove(sc)
+
+
+# ---------------------------------------------------------------- GPU sampling = numpy sampling
+@pytest.mark.parametrize("interp", ["Linear", "Closest"])
+def test_gpu_map_sampling_matches_evaluator(interp):
+    """lib/textures.glsl samples every map (channel, scale, interpolation, extension, an image
+    smaller than its layer) as node_eval.sample_image does, at uvs inside and outside [0, 1]."""
+    from gi_preview.render.gl import get_gl
+    from gi_preview.render.gpu_scene import GPUScene, set_uniform
+    from gi_preview.render.scene_data import Material, SceneData, TexRef, Texture
+    from gi_preview.render.shaders import ProgramCache
+
+    rng = np.random.default_rng(5)
+    small = rng.uniform(0, 1, (3, 5, 4)).astype(np.float32)  # odd sizes, smaller than the layer
+    big = rng.uniform(0, 1, (8, 6, 4)).astype(np.float32)
+    sd = SceneData(textures=[Texture("small", small), Texture("big", big)])
+    exts = ["REPEAT", "EXTEND", "CLIP", "MIRROR"]
+    for k, ext in enumerate(exts):
+        sd.materials.append(Material(name=ext, maps={
+            "base_color": TexRef(0, -1, interp, ext),
+            "alpha": TexRef(0, 3, interp, ext),
+            "roughness": TexRef(1, 1, interp, ext),
+            "metallic": TexRef(1, 2, interp, ext, scale=0.5),
+            "emission": TexRef(1, -1, interp, ext, scale=3.0)}))
+    uv = rng.uniform(-1.3, 2.3, (256, 2)).astype(np.float32)
+    uv[:8] = [[0.5, 0.5], [0.0, 0.0], [1.0, 1.0], [0.999, 0.001], [0.1, 0.9], [-0.01, 0.5], [1.01, 0.5], [0.5, -0.2]]
+    gl = get_gl()
+
+    def job():
+        ctx = gl.ctx
+        gs = GPUScene(ctx)
+        programs = ProgramCache(ctx)
+        outs = []
+        try:
+            gs.update(sd)
+            prog = programs.compute("test/material_sample.comp")
+            gs.bind(prog)
+            ubuf = ctx.buffer(uv.tobytes())
+            obuf = ctx.buffer(reserve=len(uv) * 3 * 16)
+            ubuf.bind_to_storage_buffer(4)
+            obuf.bind_to_storage_buffer(5)
+            set_uniform(prog, "u_count", len(uv))
+            for k in range(len(exts)):
+                set_uniform(prog, "u_material", k)
+                prog.run((len(uv) + 63) // 64)
+                ctx.finish()
+                outs.append(np.frombuffer(obuf.read(), np.float32).reshape(-1, 3, 4).copy())
+            ubuf.release()
+            obuf.release()
+        finally:
+            gs.release()
+            programs.release()
+        return outs
+
+    outs = gl.call(job)
+    for ext, out in zip(exts, outs):
+        a = NE.sample_image(small, uv, interp, ext)
+        b = NE.sample_image(big, uv, interp, ext)
+        tol = dict(atol=2e-3, rtol=2e-3)  # the array is RGBA16F
+        if interp == "Closest":  # a uv on a texel border may fall either way in float32
+            edge = np.any(np.abs(uv * [[5, 3]] - np.round(uv * [[5, 3]])) < 1e-4, 1) | \
+                np.any(np.abs(uv * [[6, 8]] - np.round(uv * [[6, 8]])) < 1e-4, 1)
+        else:
+            edge = np.zeros(len(uv), bool)
+        ok = ~edge
+        np.testing.assert_allclose(out[ok, 0, :3], a[ok, :3], err_msg=f"{ext} base", **tol)
+        np.testing.assert_allclose(out[ok, 0, 3], a[ok, 3], err_msg=f"{ext} alpha", **tol)
+        np.testing.assert_allclose(out[ok, 1, 0], b[ok, 1], err_msg=f"{ext} roughness", **tol)
+        np.testing.assert_allclose(out[ok, 1, 1], 0.5 * b[ok, 2], err_msg=f"{ext} metallic", **tol)
+        np.testing.assert_allclose(out[ok, 2, :3], 3.0 * b[ok, :3], err_msg=f"{ext} emission", **tol)

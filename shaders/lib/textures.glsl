@@ -14,11 +14,14 @@
 #ifndef GI_TEXTURES_GLSL
 #define GI_TEXTURES_GLSL
 
+// a mod n in [0, n) for any sign of a (GLSL leaves % of negative operands undefined)
+int tex_mod(int a, int n) { return a - n * int(floor(float(a) / float(n))); }
+
 // texel index i along an axis of n texels under extension mode ext; valid = false outside (Clip)
 int tex_wrap(int i, int n, int ext, inout bool valid) {
-    if (ext == 0) return ((i % n) + n) % n;
+    if (ext == 0) return tex_mod(i, n);
     if (ext == 3) {
-        int p = ((i % (2 * n)) + 2 * n) % (2 * n);
+        int p = tex_mod(i, 2 * n);
         return p < n ? p : 2 * n - 1 - p;
     }
     if (ext == 2 && (i < 0 || i >= n)) valid = false;
