@@ -261,8 +261,16 @@ class SceneRT:
 
     @property
     def defines(self) -> dict:
-        """The binding-point defines of bvh.glsl / scene_rt.glsl for ``programs.compute``."""
-        return {_DEFINE[k]: v for k, v in self.bindings.items()}
+        """The binding-point defines of bvh.glsl / scene_rt.glsl for ``programs.compute``, and
+        ``RT_SCENE_ALPHA`` when some material has holes (rays then test alpha at every
+        candidate hit; without holes the traversal skips that code)."""
+        from .gpu_scene import has_alpha
+
+        out = {_DEFINE[k]: v for k, v in self.bindings.items()}
+        scene = self.gpu_scene.scene
+        if scene is not None and has_alpha(scene):
+            out["RT_SCENE_ALPHA"] = 1
+        return out
 
     def bind(self, prog, texture_unit: int = 0) -> None:
         """Bind everything scene_rt.glsl reads: the GPUScene's buffers and texture array, the

@@ -28,13 +28,15 @@
 // transparent to rays (Cycles): scene_trace and scene_occluded see triangles only.
 // Materials are sampled with lib/textures.glsl's sample_material (the G-buffer's function):
 // SurfaceHit.normal is the normal-mapped shading normal. Alpha: when some material has holes
-// (u_alpha_test), every candidate hit of every ray (closest and any-hit) is a hole with
+// (RT_SCENE_ALPHA, from SceneRT.defines), every candidate hit of every ray (closest and any-hit) is a hole with
 // probability 1 - alpha (Cycles' stochastic transparency), decided by a hash of the ray and
 // the triangle, so a ray meets the same holes in both queries.
 #ifndef GI_SCENE_RT_GLSL
 #define GI_SCENE_RT_GLSL
 
+#ifdef RT_SCENE_ALPHA  // SceneRT.defines: some material has holes (the test costs traversal time)
 #define RT_ALPHA_TEST
+#endif
 #include "lib/bvh.glsl"
 #include "lib/textures.glsl"
 
