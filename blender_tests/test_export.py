@@ -348,7 +348,7 @@ def test_materials_principled_slots_texture_and_fallback(scene):
     by_name = {m.name: m for m in sd.materials}
     assert len(by_name) == len(sd.materials)  # deduplicated
     m = by_name["red"]
-    assert m.exact and not m.warnings
+    assert m.exact and not m.warnings and m.support == "exact"
     assert m.base_color == pytest.approx((0.9, 0.1, 0.05), abs=1e-6)
     assert (m.metallic, m.roughness, m.ior, m.specular_ior_level, m.alpha) == pytest.approx(
         (0.3, 0.25, 1.45, 0.7, 0.75), abs=1e-6)
@@ -366,12 +366,13 @@ def test_materials_principled_slots_texture_and_fallback(scene):
     np.testing.assert_allclose(px[0, 0], (lin, lin, lin, 1), atol=3e-3)  # 8-bit quantisation
     np.testing.assert_allclose(px[1, 1], (1, 0, 0, 1), atol=1e-6)
 
+    # a procedural texture on Roughness: that input alone falls back to its own value
     m = by_name["Noisy"]
-    assert not m.exact
-    assert m.base_color == pytest.approx((0.1, 0.2, 0.3), abs=1e-6)
+    assert not m.exact and m.support.startswith("unsupported:") and "'My Noise'" in m.support
+    assert m.base_color == pytest.approx((0.2, 0.3, 0.4), abs=1e-6)
     (w,) = m.warnings
     assert "Material 'Noisy'" in w and "'My Noise'" in w and "ShaderNodeTexNoise" in w
-    assert "'Roughness'" in w and "viewport" in w
+    assert "'Roughness'" in w and "input's own value" in w
     assert w in sd.warnings
 
     m = by_name["emit"]

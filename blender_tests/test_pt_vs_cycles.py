@@ -314,7 +314,7 @@ def test_cornell_256_no_fireflies_through_session():
 def test_bvh_over_ssbo_limit_is_a_scene_error(monkeypatch):
     """Too many triangles for one shader storage block: a SceneError naming the limit, not a
     driver crash. The limit is made small here (the real one is 128 MiB on llvmpipe, about
-    2.8 M triangles) so the test needs no 4 M-triangle scene; the check runs before the build."""
+    1.4 M triangles) so the test needs no 4 M-triangle scene; the check runs before the build."""
     from gi_preview.render import session
     from gi_preview.render.scene_data import SceneError
     from gi_preview.render.techniques import pt as pt_mod

@@ -9,8 +9,13 @@
   is stored once. Curves, text, surfaces and metaballs come through ``to_mesh()`` when the
   depsgraph does not already give their mesh as an instance.
 * Materials: the Principled BSDF (and Emission / Diffuse / Glossy / Metallic BSDFs) behind
-  the Cycles output node; an Image Texture on Base Color becomes a ``Texture``. Anything
-  else falls back to the material's viewport colour with ``exact=False`` and a warning.
+  the Cycles output node. Each input is read through the node evaluator
+  (``material_nodes.Capture`` -> ``render/node_eval.py``): a constant, an image used as is
+  (or one of its channels), or a bake of the nodes over the UV square (see
+  docs/ARCHITECTURE.md, "Materials and textures"); a Normal Map node gives a tangent-space
+  map and the mesh's MikkTSpace tangents. A node that depends on more than the UV map falls
+  back for its input only (``exact=False``, ``support``, a warning naming it); another
+  surface shader falls back to the material's viewport colour.
 * Lights in Cycles' units (checked against Cycles renders, see blender_tests/test_export.py):
   point/spot intensity ``P*color/(4 pi)`` W/sr, sun irradiance ``E*color`` W/m^2, area
   radiance ``P*color/(pi*A)`` (``normalize``) or ``P*color/pi``; all times ``2**exposure``
@@ -31,9 +36,12 @@ import subprocess
 import bpy
 import numpy as np
 
+from ..render import node_eval as NE
+from ..render.node_eval import Unsupported
 from ..render.scene_data import (AreaShape, Camera, Instance, Light, LightType, Material,
-                                 Mesh, SceneData, SceneError, Texture, World)
+                                 Mesh, SceneData, SceneError, TexRef, Texture, World)
 from ..render.world_map import extract_sun, world_map_of
+from .material_nodes import Capture
 
 __all__ = ["export_scene", "SceneExporter", "instance_id", "DEFAULT_MATERIAL_NAME"]
 
@@ -92,6 +100,239 @@ def _output_node(tree):
     return node
 
 
+# ------------------------------------------------------------------------------ materials
+_PRINCIPLED_SCALARS = (("metallic", "Metallic", "metallic"), ("roughness", "Roughness", "roughness"),
+                       ("alpha", "Alpha", "alpha"), ("specular_ior_level", "Specular IOR Level",
+                                                     "specular_ior_level"))
+
+
+class _MaterialReader:
+    """Reads the inputs of one BSDF node into a Material: each input is a constant, a texture
+    (an image used as is, or a bake of the node expression over the UV square: see
+    render/node_eval.py), or, when a node upstream depends on more than the UV map, the
+    input's own value with a warning naming the node (that input only)."""
+
+    def __init__(self, ex: "_Exporter", mat, bsdf):
+        self.ex = ex
+        self.mat = mat
+        self.bsdf = bsdf
+        self.cap = Capture(ex.image_ref)
+        self.unsupported: list[str] = []
+        self.approx: list[str] = []
+        self.tangent_uv: str | None = None
+        self.uv_names: set = set()
+
+    # ---------------------------------------------------------- expressions
+    def expr(self, sock):
+        try:
+            e = self.cap.socket(sock)
+        except Unsupported as exc:
+            self.unsupported.append(f"{exc} (on '{sock.name}')")
+            return None
+        self.uv_names |= NE.uv_maps(e) - {""}
+        return e
+
+    def resolve(self, e, chans: int, label: str):
+        """('const', value array) or ('tex', TexRef, mean array) for expression ``e``."""
+        if NE.is_const(e):
+            return "const", NE.evaluate(e, [[0.5, 0.5]])[0]
+        ref = self._direct(e, chans)
+        if ref is not None:
+            px = self.ex.data.textures[ref.texture].pixels
+            mean = px[..., :3].reshape(-1, 3).mean(0) if ref.channel < 0 else \
+                np.array([px[..., ref.channel].mean()])
+            return "tex", ref, mean * ref.scale
+        w, h = NE.bake_size(e)
+        closest = NE.closest_grid(e)
+        if not (closest or NE.texel_linear(e)):  # thresholds, ramps: sample finer than the images
+            w, h = min(2048, 2 * w), min(2048, 2 * h)
+        key = f"{e!r}|{w}x{h}"
+
+        def make():
+            vals = NE.bake(e, w, h)
+            out = np.zeros((h, w, 4), np.float32)
+            out[..., :vals.shape[2]] = vals
+            out[..., 3] = 1.0 if vals.shape[2] == 3 else out[..., 3]
+            return out
+
+        tex = self.ex.baked(f"{self.mat.name}: {label}", key, make)
+        ext = "REPEAT"
+        if not NE.periodic(e):
+            ext = "EXTEND"
+            self.approx.append(f"'{label}' is baked over the UV square [0, 1] (Extend outside it)")
+        ref = TexRef(texture=tex, channel=-1 if chans == 3 else 0,
+                     interpolation="Closest" if closest else "Linear", extension=ext)
+        px = self.ex.data.textures[tex].pixels
+        mean = px[..., :3].reshape(-1, 3).mean(0) if chans == 3 else np.array([px[..., 0].mean()])
+        return "tex", ref, mean
+
+    @staticmethod
+    def _direct(e, chans):
+        """A TexRef when ``e`` is one image (default UV map) or one channel of it."""
+        img, ch = None, -1
+        if isinstance(e, NE.Image):
+            img, ch = e, (-1 if e.output == "Color" else 3)
+        elif isinstance(e, NE.Op) and e.kind == "separate" and e.params[0] == "RGB" and \
+                isinstance(e.args[0], NE.Image) and e.args[0].output == "Color":
+            img, ch = e.args[0], e.params[1]
+        if img is None or not isinstance(img.vector, NE.UV) or img.vector.name:
+            return None
+        if (chans == 3) != (ch < 0):
+            return None
+        return TexRef(texture=img.texture, channel=ch, interpolation=img.interpolation, extension=img.extension)
+
+    # ---------------------------------------------------------- inputs
+    def color(self, m: Material, key: str, sock) -> None:
+        e = self.expr(sock)
+        if e is None:
+            e = NE.Const(tuple(float(x) for x in sock.default_value[:3]))
+        kind, val, *rest = self.resolve(e, 3, sock.name)
+        if kind == "const":
+            setattr(m, key, _rgb(val))
+            return
+        m.maps[key] = val
+        setattr(m, key, _rgb(rest[0]))
+        if key == "base_color":
+            m.base_color_texture = val.texture
+
+    def scalar(self, m: Material, attr: str, sock, map_key: str | None = None) -> None:
+        e = self.expr(sock)
+        if e is None:
+            setattr(m, attr, float(sock.default_value))
+            return
+        kind, val, *rest = self.resolve(e, 1, sock.name)
+        if kind == "const":
+            setattr(m, attr, float(val[0]))
+            return
+        if map_key is None:
+            self.approx.append(f"'{sock.name}' is textured; its mean {float(rest[0][0]):.4g} is used")
+        else:
+            m.maps[map_key] = val
+        setattr(m, attr, float(rest[0][0]))
+
+    def emission(self, m: Material, col_sock, str_sock) -> None:
+        ce = self.expr(col_sock)
+        se = self.expr(str_sock)
+        if ce is None:
+            ce = NE.Const(_rgb(col_sock.default_value))
+        if se is None:
+            se = NE.Const((float(str_sock.default_value),))
+        if NE.is_const(ce) and NE.is_const(se):
+            m.emission_color = _rgb(NE.evaluate(ce, [[0.5, 0.5]])[0])
+            m.emission_strength = float(NE.evaluate(se, [[0.5, 0.5]])[0, 0])
+            return
+        strength = float(NE.evaluate(se, [[0.5, 0.5]])[0, 0]) if NE.is_const(se) else None
+        if strength is not None:
+            if strength == 0.0:
+                m.emission_color, m.emission_strength = _rgb(NE.evaluate(ce, [[0.5, 0.5]])[0]), 0.0
+                return
+            _, ref, mean = self.resolve(ce, 3, col_sock.name)
+            ref.scale = strength
+        else:
+            prod = NE.Op("vmath", ("SCALE",), (ce, NE.Const((0.0, 0.0, 0.0)), NE.Const((0.0, 0.0, 0.0)), se))
+            _, ref, mean = self.resolve(prod, 3, "Emission")
+        m.maps["emission"] = ref
+        m.emission_color = _rgb(mean)
+        m.emission_strength = 1.0
+
+    def normal(self, m: Material, sock) -> None:
+        found = _follow(sock)
+        if found is None:
+            return
+        node, _ = found
+        if node.bl_idname != "ShaderNodeNormalMap":
+            self.unsupported.append(f"node '{node.name}' ({node.bl_idname}) is not supported (on '{sock.name}')")
+            return
+        if node.space != "TANGENT":
+            self.unsupported.append(f"node '{node.name}' (ShaderNodeNormalMap) in {node.space} space is not "
+                                    f"supported (on '{sock.name}')")
+            return
+        se = self.expr(node.inputs["Strength"])
+        if se is None:
+            return
+        if not NE.is_const(se):
+            self.approx.append(f"the strength of normal map '{node.name}' is textured; its mean is used")
+        strength = float(NE.evaluate(se, [[0.5, 0.5]])[0, 0]) if NE.is_const(se) else \
+            float(NE.bake(se, 16, 16).mean())
+        ce = self.expr(node.inputs["Color"])
+        if ce is None:
+            return
+        if NE.is_const(ce):
+            ce = NE.Op("to_color", (), (ce,)) if NE.channels(ce) == 1 else ce
+            c = NE.evaluate(ce, [[0.5, 0.5]])[0]
+            if np.allclose(c, (0.5, 0.5, 1.0), atol=1e-6):
+                return  # the flat normal
+        if NE.is_const(ce):  # a constant tilt: a 1 x 1 texture
+            c = tuple(float(x) for x in NE.evaluate(ce, [[0.5, 0.5]])[0])
+            ref = TexRef(texture=self.ex.baked(f"{self.mat.name}: normal", f"const-normal{c}",
+                                              lambda: np.array([[[*c, 1.0]]], np.float32)))
+        else:
+            _, ref, _ = self.resolve(ce, 3, f"{node.name} Color")
+        ref.scale = strength
+        m.maps["normal"] = ref
+        self.tangent_uv = node.uv_map or ""
+        if node.uv_map:
+            self.uv_names.add(node.uv_map)
+
+    def ignore_linked(self, names) -> None:
+        for name in names:
+            sock = self.bsdf.inputs.get(name)
+            if sock is None:
+                continue
+            if name == "Normal":
+                continue  # handled by normal() where the caller asks for it
+            found = _follow(sock)
+            if found is not None:
+                self.unsupported.append(f"node '{found[0].name}' ({found[0].bl_idname}) is not supported "
+                                        f"(on '{name}')")
+
+    # ---------------------------------------------------------- Principled
+    def principled(self) -> Material:
+        inp = self.bsdf.inputs
+        m = Material(name=self.mat.name)
+        for attr, sock_name, key in _PRINCIPLED_SCALARS:
+            self.scalar(m, attr, inp[sock_name], key)
+        for attr, sock_name in (("ior", "IOR"),):
+            self.scalar(m, attr, inp[sock_name])
+        e = self.expr(inp["Specular Tint"])
+        if e is not None and not NE.is_const(e):
+            _, _, mean = self.resolve(e, 3, "Specular Tint")
+            self.approx.append("'Specular Tint' is textured; its mean is used")
+            m.specular_tint = _rgb(mean)
+        else:
+            m.specular_tint = _rgb(NE.evaluate(e, [[0.5, 0.5]])[0]) if e is not None else \
+                _rgb(inp["Specular Tint"].default_value)
+        self.emission(m, inp["Emission Color"], inp["Emission Strength"])
+        self.color(m, "base_color", inp["Base Color"])
+        self.normal(m, inp["Normal"])
+        # Lobes GI Preview does not model: keep the Principled values, flag them.
+        ignored = []
+        for name in ("Transmission Weight", "Coat Weight", "Sheen Weight", "Subsurface Weight"):
+            s = inp.get(name)
+            if s is not None and (s.is_linked or float(s.default_value) > 0.0):
+                ignored.append(name)
+        if ignored:
+            self.approx.append(f"Principled BSDF '{self.bsdf.name}' inputs "
+                               f"{', '.join(repr(n) for n in ignored)} are ignored")
+        return self.finish(m)
+
+    def finish(self, m: Material) -> Material:
+        self.approx.extend(self.cap.notes)
+        name = self.mat.name
+        for u in self.unsupported:
+            m.warnings.append(f"Material '{name}': {u}; using the input's own value")
+        for a in self.approx:
+            m.warnings.append(f"Material '{name}': {a}")
+        if self.unsupported:
+            m.support = "unsupported: " + "; ".join(self.unsupported)
+        elif self.approx:
+            m.support = "approximated: " + "; ".join(self.approx)
+        m.exact = not (self.unsupported or self.approx)
+        m._tangent_uv = self.tangent_uv
+        m._uv_names = set(self.uv_names)
+        return m
+
+
 # ------------------------------------------------------------------------------ exporter
 class _Exporter:
     def __init__(self, depsgraph, cache: "SceneExporter | None" = None):
@@ -99,6 +340,9 @@ class _Exporter:
         self.data = SceneData()
         self._material_ids: dict[int, int] = {}
         self._texture_ids: dict[int, int] = {}
+        self._bake_ids: dict[str, int] = {}
+        self._tangent_maps: dict[int, str] = {}  # material index -> UV map its normal map uses
+        self._uv_names: dict[int, set] = {}  # material index -> UV maps named by its nodes
         self._mesh_ids: dict[tuple, int] = {}
         self._default_material: int | None = None
         self.cache = cache
@@ -131,6 +375,12 @@ class _Exporter:
         idx = len(self.data.materials)
         self.data.materials.append(m)
         self._material_ids[key] = idx
+        tu = getattr(m, "_tangent_uv", None)
+        if tu is not None:
+            self._tangent_maps[idx] = tu
+        names = getattr(m, "_uv_names", None)
+        if names:
+            self._uv_names[idx] = names
         return idx
 
     def _fallback(self, mat, reason: str) -> Material:
@@ -155,107 +405,53 @@ class _Exporter:
         node, _ = found
         kind = node.bl_idname
         if kind == "ShaderNodeBsdfPrincipled":
-            return self._principled(mat, node)
+            return _MaterialReader(self, mat, node).principled()
         if kind == "ShaderNodeEmission":
-            bad = self._linked(node, ("Color", "Strength"))
-            if bad:
-                return self._fallback(mat, bad)
-            return Material(name=mat.name, base_color=(0.0, 0.0, 0.0), roughness=1.0,
-                            specular_ior_level=0.0,
-                            emission_color=_rgb(node.inputs["Color"].default_value),
-                            emission_strength=float(node.inputs["Strength"].default_value))
+            r = _MaterialReader(self, mat, node)
+            m = Material(name=mat.name, base_color=(0.0, 0.0, 0.0), roughness=1.0, specular_ior_level=0.0)
+            r.emission(m, node.inputs["Color"], node.inputs["Strength"])
+            return r.finish(m)
         if kind == "ShaderNodeBsdfDiffuse":
-            bad = self._linked(node, ("Roughness",))
-            if bad:
-                return self._fallback(mat, bad)
+            r = _MaterialReader(self, mat, node)
             m = Material(name=mat.name, roughness=1.0, specular_ior_level=0.0)
-            return self._base_color(mat, node, node.inputs["Color"], m)
+            r.ignore_linked(("Roughness",))
+            r.normal(m, node.inputs["Normal"])
+            r.color(m, "base_color", node.inputs["Color"])
+            return r.finish(m)
         if kind in ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfMetallic"):
+            r = _MaterialReader(self, mat, node)
             col = node.inputs.get("Color") or node.inputs.get("Base Color")
-            bad = self._linked(node, ("Roughness",))
-            if bad:
-                return self._fallback(mat, bad)
-            m = Material(name=mat.name, metallic=1.0,
-                         roughness=float(node.inputs["Roughness"].default_value))
-            return self._base_color(mat, node, col, m)
+            m = Material(name=mat.name, metallic=1.0, specular_ior_level=0.5)
+            r.scalar(m, "roughness", node.inputs["Roughness"], "roughness")
+            r.normal(m, node.inputs["Normal"])
+            r.color(m, "base_color", col)
+            return r.finish(m)
         return self._fallback(mat, f"shader node '{node.name}' ({kind}) on 'Surface' is not supported")
 
-    @staticmethod
-    def _linked(node, names) -> str | None:
-        """A reason string when one of ``names`` is driven by a link, else None."""
-        for name in names:
-            sock = node.inputs.get(name)
-            if sock is None:
-                continue
-            found = _follow(sock)
-            if found is not None:
-                src = found[0]
-                return f"node '{src.name}' ({src.bl_idname}) on '{name}' is not supported"
-        return None
-
-    def _base_color(self, mat, bsdf, socket, m: Material) -> Material:
-        """Read an unlinked colour, or an Image Texture linked into it, into ``m``."""
-        found = _follow(socket)
-        if found is None:
-            m.base_color = _rgb(socket.default_value)
-            return m
-        node, out = found
-        if node.bl_idname != "ShaderNodeTexImage" or out.name != "Color" or node.image is None:
-            return self._fallback(mat, f"node '{node.name}' ({node.bl_idname}) on '{socket.name}' "
-                                       "is not supported")
-        tex = self.texture(node.image)
+    # -------------------------------------------------------------- textures for materials
+    def image_ref(self, image):
+        """(texture index, content key, pixels) of an image for the node evaluator."""
+        tex = self.texture(image)
         if tex < 0:
-            return self._fallback(mat, f"image '{node.image.name}' in node '{node.name}' "
-                                       "(ShaderNodeTexImage) has no pixels")
-        m.base_color_texture = tex
-        # Consumers that ignore textures still see the right average colour.
-        m.base_color = _rgb(self.data.textures[tex].pixels[..., :3].reshape(-1, 3).mean(axis=0))
-        vec = node.inputs.get("Vector")
-        if vec is not None and _follow(vec) is not None:
-            src = _follow(vec)[0]
-            m.exact = False
-            m.warnings.append(f"Material '{mat.name}': node '{src.name}' ({src.bl_idname}) on "
-                              f"'{node.name}' Vector is ignored; using the active UV map")
-        if node.interpolation == "Closest" or node.extension not in ("REPEAT",):
-            pass  # sampling details are the renderer's; repeat + linear assumed
-        return m
+            return None
+        orig = getattr(image, "original", None) or image
+        px = self.data.textures[tex].pixels
+        return tex, f"{orig.as_pointer()}:{px.shape[1]}x{px.shape[0]}", px
 
-    def _principled(self, mat, node) -> Material:
-        inp = node.inputs
-        scalar = ("Metallic", "Roughness", "IOR", "Alpha", "Specular IOR Level",
-                  "Emission Strength")
-        bad = self._linked(node, scalar + ("Specular Tint", "Emission Color"))
-        if bad:
-            return self._fallback(mat, bad)
-        m = Material(
-            name=mat.name,
-            metallic=float(inp["Metallic"].default_value),
-            roughness=float(inp["Roughness"].default_value),
-            ior=float(inp["IOR"].default_value),
-            specular_ior_level=float(inp["Specular IOR Level"].default_value),
-            specular_tint=_rgb(inp["Specular Tint"].default_value),
-            alpha=float(inp["Alpha"].default_value),
-            emission_color=_rgb(inp["Emission Color"].default_value),
-            emission_strength=float(inp["Emission Strength"].default_value),
-        )
-        res = self._base_color(mat, node, inp["Base Color"], m)
-        if res is not m:
-            return res  # fell back to the viewport colour
-        # Lobes GI Preview does not model: keep the Principled values, flag them.
-        ignored = []
-        for name in ("Transmission Weight", "Coat Weight", "Sheen Weight", "Subsurface Weight"):
-            s = inp.get(name)
-            if s is not None and (s.is_linked or float(s.default_value) > 0.0):
-                ignored.append(name)
-        for name in ("Normal",):
-            s = inp.get(name)
-            if s is not None and _follow(s) is not None:
-                ignored.append(name)
-        if ignored:
-            m.exact = False
-            m.warnings.append(f"Material '{mat.name}': Principled BSDF '{node.name}' inputs "
-                              f"{', '.join(repr(n) for n in ignored)} are ignored")
-        return m
+    def baked(self, name: str, key: str, make) -> int:
+        """Index of a baked texture (made by ``make()`` -> (H, W, 4) float32), cached by ``key``."""
+        idx = self._bake_ids.get(key)
+        if idx is not None:
+            return idx
+        tex = self.cache._bakes.get(key) if self.cache is not None else None
+        if tex is None:
+            tex = Texture(name=name, pixels=np.ascontiguousarray(make(), np.float32))
+            if self.cache is not None:
+                self.cache._bakes[key] = tex
+        idx = len(self.data.textures)
+        self.data.textures.append(tex)
+        self._bake_ids[key] = idx
+        return idx
 
     def texture(self, image) -> int:
         orig = getattr(image, "original", None) or image
@@ -308,17 +504,19 @@ class _Exporter:
         full_key = (key, lut)
         idx = self._mesh_ids.get(full_key)
         if idx is None:
+            tangent_uv = next((self._tangent_maps[i] for i in lut if i in self._tangent_maps), None)
+            self._check_uv_names(mesh, lut)
             m = None
             ckey = None
             if self.cache is not None:
-                ckey = (key, lut, len(mesh.vertices), len(mesh.polygons), name)
+                ckey = (key, lut, len(mesh.vertices), len(mesh.polygons), name, tangent_uv)
                 hit = self.cache._meshes.get(ckey)
                 if hit is not None:
                     m = hit[0]
                     hit[1].update(deps)
                     self.meshes_reused += 1
             if m is None:
-                m = _read_mesh(mesh, np.asarray(lut, np.int32), name)
+                m = _read_mesh(mesh, np.asarray(lut, np.int32), name, tangent_uv, self.warn)
                 self.meshes_read += 1
                 if ckey is not None:
                     self.cache._meshes[ckey] = (m, set(deps))
@@ -328,6 +526,26 @@ class _Exporter:
             self.data.meshes.append(m)
             self._mesh_ids[full_key] = idx
         return idx
+
+    def _check_uv_names(self, mesh, lut) -> None:
+        """A material whose nodes name a UV map other than the mesh's render UV map is read
+        with the render UV map: say so (not exact)."""
+        layers = mesh.uv_layers
+        active = getattr(layers, "active_render", None) or layers.active
+        active_name = active.name if active is not None else ""
+        for i in set(lut):
+            for n in self._uv_names.get(i, ()):
+                if n == active_name or n not in layers:
+                    continue
+                m = self.data.materials[i]
+                msg = (f"Material '{m.name}': UV map '{n}' on mesh '{mesh.name}' is read as the render UV "
+                       f"map '{active_name}'")
+                if msg not in m.warnings:
+                    m.warnings.append(msg)
+                    m.exact = False
+                    if m.support == "exact":
+                        m.support = "approximated: " + msg.split(": ", 1)[1]
+                    self.warn(msg)
 
     def add_instance(self, mesh_idx: int, matrix, object_name: str, instance_id: str = "") -> None:
         if self.data.meshes[mesh_idx].triangle_count == 0:
@@ -563,7 +781,33 @@ def instance_id(inst) -> str:
     return f"{par.original.name_full if par is not None else ''}/{orig.name_full}/{'.'.join(map(str, pid))}"
 
 
-def _read_mesh(mesh, lut: np.ndarray, name: str) -> Mesh:
+def _read_tangents(mesh, uv_name: str, corners: np.ndarray, warn) -> np.ndarray | None:
+    """Per-corner MikkTSpace tangents of a UV map (xyz, bitangent sign), as Cycles reads them."""
+    layers = mesh.uv_layers
+    layer = layers.get(uv_name) if uv_name else (getattr(layers, "active_render", None) or layers.active)
+    if layer is None:
+        warn(f"Mesh '{mesh.name}': no UV map '{uv_name}' for its normal map's tangents")
+        return None
+    nl = len(mesh.loops)
+    try:
+        mesh.calc_tangents(uvmap=layer.name)
+    except RuntimeError as exc:
+        warn(f"Mesh '{mesh.name}': tangents of UV map '{layer.name}' failed ({exc})")
+        return None
+    try:
+        t = np.empty(3 * nl, np.float32)
+        mesh.loops.foreach_get("tangent", t)
+        sign = np.empty(nl, np.float32)
+        mesh.loops.foreach_get("bitangent_sign", sign)
+    finally:
+        mesh.free_tangents()
+    out = np.empty((nl, 4), np.float32)
+    out[:, :3] = t.reshape(nl, 3)
+    out[:, 3] = sign
+    return np.ascontiguousarray(out[corners])
+
+
+def _read_mesh(mesh, lut: np.ndarray, name: str, tangent_uv: str | None = None, warn=None) -> Mesh:
     """Triangle-soup arrays of an evaluated mesh (no per-element Python loops)."""
     mesh.calc_loop_triangles()
     tris = mesh.loop_triangles
@@ -604,9 +848,12 @@ def _read_mesh(mesh, lut: np.ndarray, name: str) -> Mesh:
         material_ids = lut[tri_mat]
     else:
         material_ids = np.full(nt, lut[0] if len(lut) else -1, np.int32)
+    tangents = None
+    if tangent_uv is not None and nt:
+        tangents = _read_tangents(mesh, tangent_uv, corners, warn or (lambda msg: None))
     return Mesh(name=name, positions=np.ascontiguousarray(positions),
                 normals=np.ascontiguousarray(normals), uvs=np.ascontiguousarray(uvs),
-                material_ids=np.ascontiguousarray(material_ids, dtype=np.int32))
+                material_ids=np.ascontiguousarray(material_ids, dtype=np.int32), tangents=tangents)
 
 
 def export_scene(depsgraph, *, width: int | None = None, height: int | None = None,
@@ -664,6 +911,7 @@ class SceneExporter:
     def __init__(self):
         self._meshes: dict = {}  # key -> (Mesh, set of dependency names)
         self._textures: dict = {}  # (image pointer, w, h) -> (Texture, warning)
+        self._bakes: dict = {}  # node-expression key -> baked Texture
         self._used: set = set()
         self.last_stats: dict = {}
 
@@ -685,6 +933,7 @@ class SceneExporter:
                 dirty.add(f"data:{name}")
         if images:
             self._textures.clear()
+            self._bakes.clear()
         if dirty:
             for k in [k for k, (_, deps) in self._meshes.items() if deps & dirty]:
                 del self._meshes[k]
@@ -693,6 +942,7 @@ class SceneExporter:
         if updates is None:
             self._meshes.clear()
             self._textures.clear()
+            self._bakes.clear()
         else:
             self.invalidate(updates)
         self._used = set()

@@ -23,8 +23,9 @@ BLAS, instance indices for the TLAS); ``count == 0``: an interior node whose chi
 (indices already offset), so a BLAS is just its root node index.
 
 Per triangle (in BVH order, global over all meshes): ``verts`` vec4[3T] (object-space corner
-positions), ``normals`` vec4[3T] (corner normal xyz, w = u), ``uvs``... packed as the w
-of ``verts`` (v) so that the shading attributes cost two buffers, ``tri_info`` ivec2[T]
+positions), ``normals`` 2 x vec4[3T] (corner normal xyz, w = u; MikkTSpace tangent xyz,
+w = bitangent sign, zero without one), ``uvs``... packed as the w of ``verts`` (v) so that
+the shading attributes cost two buffers, ``tri_info`` ivec2[T]
 (original triangle index within its mesh, mesh material id). ``instances``: per instance
 ``mat4 world_to_object, mat4 object_to_world, ivec4(blas_root, mesh, material_map_offset,
 triangle_offset)``; ``material_map``: int[] per-instance material remaps.
@@ -338,7 +339,7 @@ class SceneBVH:
 
     blas_nodes: np.ndarray  # (N, 8) float32
     verts: np.ndarray  # (3T, 4) float32: object-space position xyz, w = uv.y
-    normals: np.ndarray  # (3T, 4) float32: corner normal xyz, w = uv.x
+    normals: np.ndarray  # (3T, 8) float32: corner normal xyz, uv.x, tangent xyz, bitangent sign
     tri_info: np.ndarray  # (T, 2) int32: original triangle index in its mesh, material id
     mesh_root: np.ndarray  # (M,) int32 root node of each mesh's BLAS
     mesh_tri_offset: np.ndarray  # (M,) int32 first BVH-ordered triangle of each mesh
@@ -371,13 +372,15 @@ class SceneBVH:
             order = bvh.prim_order
             corner = (order[:, None] * 3 + np.arange(3)[None, :]).reshape(-1)
             v = np.zeros((3 * T, 4), np.float32)
-            nrm = np.zeros((3 * T, 4), np.float32)
+            nrm = np.zeros((3 * T, 8), np.float32)
             if T:
                 uv = np.asarray(mesh.uvs, np.float32).reshape(-1, 2)[corner]
                 v[:, :3] = pos[corner]
                 v[:, 3] = uv[:, 1]
                 nrm[:, :3] = np.asarray(mesh.normals, np.float32).reshape(-1, 3)[corner]
                 nrm[:, 3] = uv[:, 0]
+                if getattr(mesh, "tangents", None) is not None:
+                    nrm[:, 4:8] = np.asarray(mesh.tangents, np.float32).reshape(-1, 4)[corner]
             verts.append(v)
             normals.append(nrm)
             info = np.zeros((T, 2), np.int32)
@@ -391,7 +394,7 @@ class SceneBVH:
         out = cls(
             blas_nodes=cat(nodes, (0, 8), np.float32),
             verts=cat(verts, (0, 4), np.float32),
-            normals=cat(normals, (0, 4), np.float32),
+            normals=cat(normals, (0, 8), np.float32),
             tri_info=cat(infos, (0, 2), np.int32),
             mesh_root=np.asarray(roots, np.int32),
             mesh_tri_offset=np.asarray(offs, np.int32),
@@ -459,7 +462,7 @@ class SceneBVH:
             "nodes": nz(self.blas_nodes, (1, 8)),
             "tlas": nz(self.tlas_nodes, (1, 8)),
             "verts": nz(self.verts, (1, 4)),
-            "normals": nz(self.normals, (1, 4)),
+            "normals": nz(self.normals, (1, 8)),
             "tri_info": nz(self.tri_info, (1, 2)),
             "instances": nz(self.instances, (1, 36)),
             "material_map": nz(self.material_map, (1,)),

@@ -19,15 +19,18 @@ from .world_map import WorldGPU
 log = logging.getLogger(__name__)
 
 # One source of truth for the layouts (floats per record); see common.glsl.
-MATERIAL_FLOATS = 16
+MATERIAL_FLOATS = 44  # 4 vec4 of values + one vec4 per texture map (MATERIAL_MAPS order)
 LIGHT_FLOATS = 28
 EMITTER_FLOATS = 16
 LIGHT_MESH = 4
 MAX_TEXTURE_SIZE = 2048
 MAX_EMITTERS = 1 << 16
-# Vertex layout: position 3, normal 3, uv 2, material id 1 (float, exact below 2^24).
-VERTEX_FORMAT = "3f 3f 2f 1f"
-VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_material")
+# Vertex layout: position 3, normal 3, uv 2, material id 1 (float, exact below 2^24),
+# tangent 4 (xyz, bitangent sign; zero when the mesh has no normal-mapped material).
+VERTEX_FORMAT = "3f 3f 2f 1f 4f"
+VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_material", "in_tangent")
+VERTEX_FLOATS = 13
+_EXTENSIONS = {"REPEAT": 0, "EXTEND": 1, "CLIP": 2, "MIRROR": 3}
 # A buffer bigger than this is refused with a clear message rather than crashing the driver.
 MAX_VERTEX_BYTES = 2 << 30
 
@@ -49,7 +52,8 @@ def set_uniform(prog, name: str, value):
 
 def _mesh_key(mesh, material_map) -> str:
     h = hashlib.blake2b(digest_size=16)
-    for arr in (mesh.positions, mesh.normals, mesh.uvs, mesh.material_ids):
+    for arr in (mesh.positions, mesh.normals, mesh.uvs, mesh.material_ids,
+                mesh.tangents if mesh.tangents is not None else np.zeros(0, np.float32)):
         a = np.ascontiguousarray(arr)
         h.update(str(a.shape).encode())
         h.update(a.tobytes())
@@ -58,22 +62,54 @@ def _mesh_key(mesh, material_map) -> str:
     return h.hexdigest()
 
 
+def layer_size(pixels: np.ndarray) -> tuple[int, int]:
+    """(width, height) an image keeps in the texture array (resized only beyond the limit)."""
+    return min(MAX_TEXTURE_SIZE, int(pixels.shape[1])), min(MAX_TEXTURE_SIZE, int(pixels.shape[0]))
+
+
+def pack_map(scene: SceneData, ref) -> np.ndarray:
+    """One texture map of a material record (common.glsl ``Material.maps``): layer (-1 none),
+    width * 4096 + height of its image in the layer, flags (channel + 1 | Closest << 3 |
+    extension << 4), scale."""
+    if ref is None or not (0 <= ref.texture < len(scene.textures)):
+        return np.array([-1.0, 0.0, 0.0, 1.0], np.float32)
+    w, h = layer_size(scene.textures[ref.texture].pixels)
+    flags = (ref.channel + 1) | ((1 if ref.interpolation == "Closest" else 0) << 3) | \
+        (_EXTENSIONS.get(ref.extension, 0) << 4)
+    return np.array([ref.texture, w * 4096 + h, flags, ref.scale], np.float32)
+
+
 def pack_materials(scene: SceneData) -> np.ndarray:
+    from .scene_data import MATERIAL_MAPS, TexRef
+
     n = max(1, len(scene.materials))
     out = np.zeros((n + 1, MATERIAL_FLOATS), np.float32)
     for i, m in enumerate(scene.materials):
+        maps = dict(m.maps)
+        if "base_color" not in maps and m.base_color_texture >= 0:
+            maps["base_color"] = TexRef(m.base_color_texture)
         out[i, 0:3] = m.base_color
-        out[i, 3] = m.base_color_texture
+        out[i, 3] = maps["base_color"].texture if "base_color" in maps else -1
         out[i, 4:8] = (m.metallic, m.roughness, m.ior, m.specular_ior_level)
         out[i, 8:11] = m.emission
         out[i, 11] = m.alpha
         out[i, 12:15] = m.specular_tint
         out[i, 15] = 1.0 if m.exact else 0.0
+        for k, key in enumerate(MATERIAL_MAPS):
+            out[i, 16 + 4 * k:20 + 4 * k] = pack_map(scene, maps.get(key))
     # the default material at the end (for material id -1 and out-of-range ids)
     out[n, 0:4] = (0.8, 0.8, 0.8, -1)
     out[n, 4:8] = (0.0, 0.5, 1.5, 0.5)
+    out[n, 11] = 1.0
     out[n, 12:16] = (1, 1, 1, 1)
+    for k in range(len(MATERIAL_MAPS)):
+        out[n, 16 + 4 * k:20 + 4 * k] = (-1.0, 0.0, 0.0, 1.0)
     return out
+
+
+def has_alpha(scene: SceneData) -> bool:
+    """Does any material cut holes (Alpha < 1 or an alpha texture)?"""
+    return any(m.alpha < 1.0 or "alpha" in m.maps for m in scene.materials)
 
 
 def spot_params(light) -> tuple[float, float]:
@@ -258,7 +294,7 @@ class GPUScene:
                     mesh._gi_key = key
             keys.append(key)
             if key not in needed:
-                total_bytes += mesh.positions.shape[0] * 36
+                total_bytes += mesh.positions.shape[0] * 4 * VERTEX_FLOATS
             needed.add(key)
         if total_bytes > MAX_VERTEX_BYTES:
             raise SceneError(
@@ -274,11 +310,13 @@ class GPUScene:
                 mids = np.asarray(inst.material_map)[np.clip(mids, 0, len(inst.material_map) - 1)]
             mids = np.where((mids < 0) | (mids >= len(scene.materials)), len(scene.materials), mids)
             n = mesh.positions.shape[0]
-            data = np.empty((n, 9), np.float32)
+            data = np.zeros((n, VERTEX_FLOATS), np.float32)
             data[:, 0:3] = mesh.positions
             data[:, 3:6] = mesh.normals
             data[:, 6:8] = mesh.uvs if mesh.uvs.shape[0] == n else 0.0
             data[:, 8] = np.repeat(mids, 3).astype(np.float32)
+            if mesh.tangents is not None and mesh.tangents.shape[0] == n:
+                data[:, 9:13] = mesh.tangents
             try:
                 vbo = self.ctx.buffer(data.tobytes()) if n else None
             except Exception as exc:
@@ -358,21 +396,25 @@ class GPUScene:
         setattr(self, attr, self.ctx.buffer(data))
 
     def _upload_textures(self, scene: SceneData):
-        import moderngl
-
+        """One RGBA16F array layer per texture, as large as the largest image; each image sits
+        unscaled at the layer's origin (its own size travels in the material record, and
+        textures.glsl wraps and interpolates within it), so no image is resampled unless it
+        exceeds MAX_TEXTURE_SIZE."""
         if self.textures is not None:
             self.textures.release()
         if not scene.textures:
             self.textures = self.ctx.texture_array((1, 1, 1), 4, np.ones(4, np.float32).tobytes(), dtype="f4")
             return
-        w = min(MAX_TEXTURE_SIZE, max(t.pixels.shape[1] for t in scene.textures))
-        h = min(MAX_TEXTURE_SIZE, max(t.pixels.shape[0] for t in scene.textures))
-        layers = [_resize(np.asarray(t.pixels, np.float32), w, h) for t in scene.textures]
-        data = np.stack(layers).astype(np.float16)
-        tex = self.ctx.texture_array((w, h, len(layers)), 4, data.tobytes(), dtype="f2")
-        tex.build_mipmaps()
-        tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-        tex.anisotropy = 8.0
+        sizes = [layer_size(t.pixels) for t in scene.textures]
+        w = max(s[0] for s in sizes)
+        h = max(s[1] for s in sizes)
+        data = np.zeros((len(sizes), h, w, 4), np.float16)
+        for i, (t, (tw, th)) in enumerate(zip(scene.textures, sizes)):
+            data[i, :th, :tw] = _resize(np.asarray(t.pixels, np.float32), tw, th)
+        tex = self.ctx.texture_array((w, h, len(sizes)), 4, data.tobytes(), dtype="f2")
+        import moderngl
+
+        tex.filter = (moderngl.NEAREST, moderngl.NEAREST)  # sampled with texelFetch only
         self.textures = tex
 
     # ------------------------------------------------------------------ use
@@ -386,6 +428,7 @@ class GPUScene:
         set_uniform(prog, "u_light_count", self.light_count)
         set_uniform(prog, "u_emitter_count", self.emitter_count)
         set_uniform(prog, "u_material_count", len(self.scene.materials) if self.scene else 0)
+        set_uniform(prog, "u_alpha_test", 1 if self.scene is not None and has_alpha(self.scene) else 0)
         if self.scene is not None:
             self.world.bind(prog, self.scene.world, self.scene.film_transparent)
 

@@ -48,7 +48,7 @@ def check_buffer_sizes(arrays: dict, limit: int, triangles: int) -> None:
     if not too_big:
         return
     name, size = max(too_big.items(), key=lambda kv: kv[1])
-    per_tri = max(arrays["verts"].nbytes // max(triangles, 1), 1)
+    per_tri = max(max(arrays[k].nbytes for k in ("verts", "normals") if k in arrays) // max(triangles, 1), 1)
     raise SceneError(
         f"The scene has {triangles:,} triangles: its ray-tracing buffer '{name}' needs "
         f"{size / 2**20:.0f} MiB, more than this GPU driver allows in one shader storage block "
@@ -126,7 +126,7 @@ class RtBuffers:
 
 
 # ---------------------------------------------------------------------------- SceneRT
-VERT_BYTES_PER_TRIANGLE = 48  # bvh.glsl: three vec4 corners per triangle (the largest buffer)
+VERT_BYTES_PER_TRIANGLE = 96  # bvh.glsl: three corners of two vec4 (normal + uv.x, tangent) per triangle (the largest buffer)
 
 
 def geometry_key(scene) -> str:
@@ -222,7 +222,7 @@ def world_table_offset(scene, count: int) -> int:
 
 def check_triangle_budget(scene, limit: int) -> None:
     """Refuse, with a SceneError naming the limit, a scene whose BVH vertex buffer would exceed
-    the GL context's GL_MAX_SHADER_STORAGE_BLOCK_SIZE (128 MiB on llvmpipe: ~2.8 M triangles),
+    the GL context's GL_MAX_SHADER_STORAGE_BLOCK_SIZE (128 MiB on llvmpipe: ~1.4 M triangles),
     before spending time building it. RtBuffers checks every buffer again after the build."""
     tris = sum(scene.meshes[i].triangle_count for i in sorted({inst.mesh for inst in scene.instances}))
     need = tris * VERT_BYTES_PER_TRIANGLE
@@ -299,8 +299,16 @@ class SceneRT:
 
     @property
     def defines(self) -> dict:
-        """The binding-point defines of bvh.glsl / scene_rt.glsl for ``programs.compute``."""
-        return {_DEFINE[k]: v for k, v in self.bindings.items()}
+        """The binding-point defines of bvh.glsl / scene_rt.glsl for ``programs.compute``, and
+        ``RT_SCENE_ALPHA`` when some material has holes (rays then test alpha at every
+        candidate hit; without holes the traversal skips that code)."""
+        from .gpu_scene import has_alpha
+
+        out = {_DEFINE[k]: v for k, v in self.bindings.items()}
+        scene = self.gpu_scene.scene
+        if scene is not None and has_alpha(scene):
+            out["RT_SCENE_ALPHA"] = 1
+        return out
 
     def bind(self, prog, texture_unit: int = 0) -> None:
         """Bind everything scene_rt.glsl reads: the GPUScene's buffers and texture array, the
@@ -318,6 +326,7 @@ class SceneRT:
         set_uniform(prog, "u_world_select", self.world_select)
         set_uniform(prog, "u_world_table", world_table_offset(scene, gs.light_count))
         set_uniform(prog, "u_world_grid", tuple(int(x) for x in (wm.grid if wm is not None else (1, 1))))
+        # u_alpha_test (GPUScene.bind): rays test alpha only when some material has holes
 
     @property
     def nbytes(self) -> int:

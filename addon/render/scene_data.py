@@ -44,6 +44,8 @@ class Mesh:
 
     positions, normals: (3*T, 3) float32, per triangle corner.
     uvs: (3*T, 2) float32 (zeros when the mesh has no UV map).
+    tangents: (3*T, 4) float32 or None: MikkTSpace tangent xyz of the UV map and the
+    bitangent sign (Blender's ``mesh.calc_tangents``), read when a material normal-maps it.
     material_slots: (T,) int32, index into ``SceneData.materials`` (already resolved
     through the object's material slots; -1 = default material).
     """
@@ -53,6 +55,7 @@ class Mesh:
     normals: np.ndarray
     uvs: np.ndarray
     material_ids: np.ndarray
+    tangents: np.ndarray | None = None
 
     @property
     def triangle_count(self) -> int:
@@ -86,9 +89,35 @@ class Instance:
     instance_id: str = ""
 
 
+# The Principled inputs a texture can drive (Material.maps keys).
+MATERIAL_MAPS = ("base_color", "roughness", "metallic", "alpha", "emission", "normal",
+                 "specular_ior_level")
+
+
+@dataclass
+class TexRef:
+    """One texture feeding one Principled input: ``texture`` indexes SceneData.textures,
+    ``channel`` picks one channel (0-3) or -1 for RGB; sampled with Cycles' Linear or
+    Closest interpolation and REPEAT / EXTEND / CLIP / MIRROR extension; the sample is
+    multiplied by ``scale`` (Emission Strength, the Normal Map's strength for ``normal``)."""
+
+    texture: int
+    channel: int = -1
+    interpolation: str = "Linear"
+    extension: str = "REPEAT"
+    scale: float = 1.0
+
+
 @dataclass
 class Material:
-    """The Principled BSDF subset GI Preview renders (Blender 4.x/5.x inputs)."""
+    """The Principled BSDF subset GI Preview renders (Blender 4.x/5.x inputs).
+
+    Scalars hold the input's value, or its mean over the texture when ``maps`` has one for
+    that input (consumers that ignore textures see the average). ``maps['emission']`` is the
+    emitted radiance (Emission Color x Strength), ``maps['normal']`` a tangent-space normal
+    map (RGB in [0, 1], strength in ``scale``) over the mesh's ``tangents``.
+    ``support`` is "exact", "approximated: <how>" or "unsupported: <node>" (what the
+    exporter understood of the node tree)."""
 
     name: str
     base_color: tuple[float, float, float] = (0.8, 0.8, 0.8)
@@ -101,6 +130,8 @@ class Material:
     emission_color: tuple[float, float, float] = (0.0, 0.0, 0.0)
     emission_strength: float = 0.0
     base_color_texture: int = -1  # index into SceneData.textures, -1 = none
+    maps: dict = field(default_factory=dict)  # MATERIAL_MAPS key -> TexRef
+    support: str = "exact"
     # True when the material's node tree was fully understood; False = viewport-colour fallback.
     exact: bool = True
     warnings: list[str] = field(default_factory=list)
@@ -291,10 +322,22 @@ class SceneData:
                 h.update(np.ascontiguousarray(x).tobytes())
             elif dataclasses.is_dataclass(x):
                 for f in dataclasses.fields(x):
-                    if f.name in ("warnings", "instance_id"):  # do not change the image
+                    if f.name in ("warnings", "instance_id", "support"):  # do not change the image
                         continue
+                    v = getattr(x, f.name)
+                    if f.name in _HASHED_WHEN_SET and (v is None or (isinstance(v, dict) and not v)
+                                                        or (not isinstance(v, np.ndarray) and v is not None
+                                                            and f.default is not dataclasses.MISSING
+                                                            and v == f.default)):
+                        continue  # unset: the fingerprint of a scene without it is unchanged
                     h.update(f.name.encode())
-                    add(getattr(x, f.name))
+                    add(v)
+            elif isinstance(x, dict):
+                h.update(b"{")
+                for k in sorted(x):
+                    h.update(repr(k).encode())
+                    add(x[k])
+                h.update(b"}")
             elif isinstance(x, (list, tuple)):
                 h.update(b"[")
                 for y in x:
@@ -305,6 +348,11 @@ class SceneData:
 
         add(self)
         return h.hexdigest()
+
+
+# Fields hashed only when set (not None, not empty), so scenes that do not use them keep their
+# fingerprints (and the Cycles references cached under them).
+_HASHED_WHEN_SET = ("maps", "tangents", "map", "source", "sun_light", "film_transparent")
 
 
 class SceneError(ValueError):

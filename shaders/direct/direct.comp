@@ -45,6 +45,7 @@ uniform sampler2D u_gb_albedo;
 uniform sampler2D u_gb_normal;
 uniform sampler2D u_gb_position;
 uniform sampler2D u_gb_geonormal;
+uniform sampler2D u_gb_emission;
 uniform vec3 u_camera_pos;
 uniform int u_ortho;
 uniform vec3 u_camera_dir;
@@ -234,10 +235,13 @@ void main() {
     }
     int mid = int(pos.w + 0.5);
     vec3 P = pos.xyz;
-    vec3 N = normalize(texelFetch(u_gb_normal, px, 0).xyz);
-    vec3 Ng = normalize(texelFetch(u_gb_geonormal, px, 0).xyz);
+    vec4 gb_n = texelFetch(u_gb_normal, px, 0);
+    vec4 gb_ng = texelFetch(u_gb_geonormal, px, 0);
+    vec3 N = normalize(gb_n.xyz);
+    vec3 Ng = normalize(gb_ng.xyz);
     vec3 V = u_ortho == 1 ? -u_camera_dir : normalize(u_camera_pos - P);
-    Surface s = make_surface(materials[mid], texelFetch(u_gb_albedo, px, 0).rgb);
+    Surface s = gbuffer_surface(materials[mid], texelFetch(u_gb_albedo, px, 0), gb_n, gb_ng,
+                                texelFetch(u_gb_emission, px, 0).rgb);
     Rng rng = rng_init(uvec2(px), u_sample, 1u);
     vec3 direct = vec3(0.0);
     int tile = (px.y / u_tile_size) * u_tiles_x + px.x / u_tile_size;

@@ -8,17 +8,15 @@
 // so that black or dark texels do not blow the noise up (remodulation undoes it exactly)
 vec3 demod_albedo(vec3 base) { return max(base, vec3(0.02)); }
 
-#ifdef USE_SCENE_BUFFERS
-// Emission of the G-buffer surface (position.w = material id, < 0 background): radiance the
-// camera sees directly, not multiplied by the albedo, so it must bypass demodulation
-// (illumination = (colour - emission) / albedo; colour = illumination x albedo + emission).
-// Dividing it by a small albedo and spreading it over the neighbours made fireflies.
-vec3 gb_emission(vec4 pos) {
-    int m = int(pos.w + 0.5);
-    if (pos.w < 0.0 || m >= materials.length()) return vec3(0.0);
-    return max(materials[m].emission.rgb, vec3(0.0));
+// Emission of the G-buffer surface at px (gbuffer.emission: textured; zero on background):
+// radiance the camera sees directly, not multiplied by the albedo, so it must bypass
+// demodulation (illumination = (colour - emission) / albedo; colour = illumination x albedo +
+// emission). Dividing it by a small albedo and spreading it over the neighbours made fireflies.
+uniform sampler2D u_gb_emission;
+vec3 gb_emission(vec4 pos, ivec2 px) {
+    if (pos.w < 0.0) return vec3(0.0);
+    return max(texelFetch(u_gb_emission, px, 0).rgb, vec3(0.0));
 }
-#endif
 
 bool finite4(vec4 v) { return !(any(isnan(v)) || any(isinf(v))); }
 

@@ -23,7 +23,7 @@ void main() {
     vec4 pos = texelFetch(u_gb_position, px, 0);
     if (pos.w >= 0.0) {
         vec3 a = demod_albedo(texelFetch(u_gb_albedo, px, 0).rgb);
-        vec3 e = gb_emission(pos);
+        vec3 e = gb_emission(pos, px);
         c = u_demod == 1 ? max(c - e, vec3(0.0)) / a : c * a + e;
     }
     imageStore(o_out, px, vec4(c, u_demod == 1 ? 0.0 : 1.0));

@@ -49,7 +49,7 @@ bool geometric_edge(ivec2 px, ivec2 size, vec3 P, vec3 N) {
 
 vec3 cur_illum(ivec2 q) {
     vec3 c = sanitize(texelFetch(u_color, q, 0).rgb);
-    vec3 e = gb_emission(texelFetch(u_gb_position, q, 0));  // emission bypasses demodulation
+    vec3 e = gb_emission(texelFetch(u_gb_position, q, 0), q);  // emission bypasses demodulation
     return max(c - e, vec3(0.0)) / demod_albedo(texelFetch(u_gb_albedo, q, 0).rgb);
 }
 

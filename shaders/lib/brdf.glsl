@@ -65,6 +65,18 @@ Surface make_surface(Material m, vec3 base_color) {
     return s;
 }
 
+// The surface at a G-buffer texel: the material record with the textured inputs the
+// G-buffer stored (raster/gbuffer.frag): albedo = (base colour, specular IOR level),
+// normal.w = roughness, geonormal.w = metallic; emission from gbuffer.emission where the
+// reader binds it (else the record's).
+Surface gbuffer_surface(Material m, vec4 albedo, vec4 normal, vec4 geonormal, vec3 emission) {
+    m.params.x = geonormal.w;
+    m.params.y = normal.w;
+    m.params.w = albedo.w;
+    m.emission.rgb = emission;
+    return make_surface(m, albedo.rgb);
+}
+
 // GGX normal distribution.
 float ggx_D(float NoH, float a2) {
     float d = (NoH * a2 - NoH) * NoH + 1.0;

@@ -62,7 +62,8 @@ struct RtInstance {
 layout(std430, binding = RT_BINDING_BLAS_NODES) readonly buffer RtBlasNodes { RtNode rt_blas[]; };
 layout(std430, binding = RT_BINDING_TLAS_NODES) readonly buffer RtTlasNodes { RtNode rt_tlas[]; };
 layout(std430, binding = RT_BINDING_VERTS) readonly buffer RtVerts { vec4 rt_verts[]; };      // xyz, w = uv.y
-layout(std430, binding = RT_BINDING_NORMALS) readonly buffer RtNormals { vec4 rt_normals[]; }; // xyz, w = uv.x
+// two vec4 per corner: (normal xyz, uv.x), (tangent xyz, bitangent sign; zero without one)
+layout(std430, binding = RT_BINDING_NORMALS) readonly buffer RtNormals { vec4 rt_normals[]; };
 layout(std430, binding = RT_BINDING_TRI_INFO) readonly buffer RtTriInfo { ivec2 rt_tri_info[]; }; // orig tri, material
 layout(std430, binding = RT_BINDING_INSTANCES) readonly buffer RtInstances { RtInstance rt_instances[]; };
 layout(std430, binding = RT_BINDING_MATERIAL_MAP) readonly buffer RtMaterialMap { int rt_material_map[]; };
@@ -79,10 +80,18 @@ struct RtSurface {
     vec3 geo_normal;  // world space, unit, from the winding (not flipped towards the ray)
     vec3 normal;      // world space, unit, interpolated corner normal
     vec2 uv;
+    vec4 tangent;     // world-space interpolated tangent xyz (not normalised), w = bitangent sign
     int material;     // index into SceneData.materials, -1 = default
     int triangle;     // original triangle index within its mesh
     int mesh;
 };
+
+#ifdef RT_ALPHA_TEST
+// Defined by the includer (lib/scene_rt.glsl): true when the hit of the ray with object-space
+// origin/inverse direction (o, inv_d) on triangle prim of instance at barycentrics bary
+// passes through the surface (alpha transparency).
+bool rt_alpha_skip(int instance, int prim, vec2 bary, vec3 o, vec3 inv_d);
+#endif
 
 RtHit rt_miss() { return RtHit(3.0e38, -1, -1, vec2(0.0)); }
 
@@ -188,6 +197,9 @@ bool rt_trace_blas(RtRay r, int root, int instance, float tmin, bool any_hit, in
                 vec2 bc;
                 if (rt_triangle(r, rt_verts[3 * i].xyz, rt_verts[3 * i + 1].xyz, rt_verts[3 * i + 2].xyz,
                                 tmin, hit.t, t, bc)) {
+#ifdef RT_ALPHA_TEST
+                    if (rt_alpha_skip(instance, i, bc, r.o, r.inv_d)) continue;
+#endif
                     hit.t = t;
                     hit.instance = instance;
                     hit.prim = i;
@@ -284,7 +296,8 @@ RtSurface rt_surface(RtHit h) {
     RtInstance inst = rt_instances[h.instance];
     int i = h.prim;
     vec4 v0 = rt_verts[3 * i], v1 = rt_verts[3 * i + 1], v2 = rt_verts[3 * i + 2];
-    vec4 n0 = rt_normals[3 * i], n1 = rt_normals[3 * i + 1], n2 = rt_normals[3 * i + 2];
+    vec4 n0 = rt_normals[6 * i], n1 = rt_normals[6 * i + 2], n2 = rt_normals[6 * i + 4];
+    vec4 t0 = rt_normals[6 * i + 1], t1 = rt_normals[6 * i + 3], t2 = rt_normals[6 * i + 5];
     float b0 = 1.0 - h.bary.x - h.bary.y;
     vec3 p_obj = b0 * v0.xyz + h.bary.x * v1.xyz + h.bary.y * v2.xyz;
     s.position = (inst.object_to_world * vec4(p_obj, 1.0)).xyz;
@@ -295,6 +308,8 @@ RtSurface rt_surface(RtHit h) {
     float len = length(ns);
     s.normal = len > 0.0 ? ns / len : s.geo_normal;
     s.uv = b0 * vec2(n0.w, v0.w) + h.bary.x * vec2(n1.w, v1.w) + h.bary.y * vec2(n2.w, v2.w);
+    vec4 tg = b0 * t0 + h.bary.x * t1 + h.bary.y * t2;
+    s.tangent = vec4(mat3(inst.object_to_world) * tg.xyz, tg.w);
     ivec2 info = rt_tri_info[i];
     s.triangle = info.x;
     s.mesh = inst.info.y;

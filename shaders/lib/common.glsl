@@ -37,11 +37,25 @@ const float T_INF = 1e30;  // "no hit" ray length (e.g. towards the sun)
 #define SHAPE_DISK 2
 #define SHAPE_ELLIPSE 3
 
+// Texture maps of a Material (scene_data.MATERIAL_MAPS order). Each map is a vec4:
+// x = texture-array layer (-1 = none), y = width * 4096 + height of its image in the layer,
+// z = flags (channel + 1, 0 = RGB | Closest << 3 | extension << 4: 0 repeat, 1 extend,
+// 2 clip, 3 mirror), w = scale (emission strength, normal-map strength).
+#define MAP_BASE_COLOR 0
+#define MAP_ROUGHNESS 1
+#define MAP_METALLIC 2
+#define MAP_ALPHA 3
+#define MAP_EMISSION 4
+#define MAP_NORMAL 5
+#define MAP_SPECULAR 6
+#define MATERIAL_MAP_COUNT 7
+
 struct Material {
-    vec4 base_color;   // rgb linear, w = texture layer (-1 = none)
+    vec4 base_color;   // rgb linear (the texture's mean when textured), w = base-colour layer (-1 = none)
     vec4 params;       // metallic, roughness, ior, specular_ior_level
     vec4 emission;     // rgb radiance (colour * strength), w = alpha
     vec4 spec_tint;    // rgb specular tint, w = 1 when the material was understood exactly
+    vec4 maps[MATERIAL_MAP_COUNT];  // textures feeding the values above (lib/textures.glsl)
 };
 
 struct Light {

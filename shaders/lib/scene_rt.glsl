@@ -26,9 +26,17 @@
 // Conventions: SurfaceHit.geo_normal is the winding's normal (not flipped); surface_frame()
 // gives the two-sided shading frame facing V, as Cycles shades back faces. Lights are
 // transparent to rays (Cycles): scene_trace and scene_occluded see triangles only.
+// Materials are sampled with lib/textures.glsl's sample_material (the G-buffer's function):
+// SurfaceHit.normal is the normal-mapped shading normal. Alpha: when some material has holes
+// (RT_SCENE_ALPHA, from SceneRT.defines), every candidate hit of every ray (closest and any-hit) is a hole with
+// probability 1 - alpha (Cycles' stochastic transparency), decided by a hash of the ray and
+// the triangle, so a ray meets the same holes in both queries.
 #ifndef GI_SCENE_RT_GLSL
 #define GI_SCENE_RT_GLSL
 
+#ifdef RT_SCENE_ALPHA  // SceneRT.defines: some material has holes (the test costs traversal time)
+#define RT_ALPHA_TEST
+#endif
 #include "lib/bvh.glsl"
 #include "lib/textures.glsl"
 #include "lib/world.glsl"
@@ -50,12 +58,35 @@ uniform int u_material_count;
 uniform float u_world_select;
 uniform int u_world_table;
 uniform ivec2 u_world_grid;
+uniform int u_alpha_test;  // 1 when some material has alpha < 1 or an alpha texture
+
+int rt_hit_material(int instance, int prim) {
+    int mat = rt_tri_info[prim].y;
+    int off = rt_instances[instance].info.z;
+    if (off >= 0 && mat >= 0) mat = rt_material_map[off + mat];
+    return (mat < 0 || mat >= u_material_count) ? u_material_count : mat;
+}
+
+bool rt_alpha_skip(int instance, int prim, vec2 bary, vec3 o, vec3 inv_d) {
+    if (u_alpha_test == 0) return false;
+    Material m = materials[rt_hit_material(instance, prim)];
+    if (m.emission.w >= 1.0 && m.maps[MAP_ALPHA].x < 0.0) return false;
+    float b0 = 1.0 - bary.x - bary.y;
+    vec2 uv = b0 * vec2(rt_normals[6 * prim].w, rt_verts[3 * prim].w)
+            + bary.x * vec2(rt_normals[6 * prim + 2].w, rt_verts[3 * prim + 1].w)
+            + bary.y * vec2(rt_normals[6 * prim + 4].w, rt_verts[3 * prim + 2].w);
+    float a = material_alpha(u_textures, m, uv);
+    if (a >= 1.0) return false;
+    if (a <= 0.0) return true;
+    uvec3 seed = floatBitsToUint(o) ^ (floatBitsToUint(inv_d) * 747796405u) ^ uvec3(uint(prim) * 2891336453u, uint(instance), 0x9E3779B9u);
+    return alpha_hash_u01(seed) >= a;
+}
 
 struct SurfaceHit {
     float t;
     vec3 position;     // world space
     vec3 geo_normal;   // world, unit, from the triangle's winding (not flipped towards the ray)
-    vec3 normal;       // world, unit, interpolated corner normal (not flipped)
+    vec3 normal;       // world, unit, interpolated corner normal, normal-mapped (not flipped)
     vec2 uv;
     int material;      // index into the material buffer (out-of-range ids: the default record)
     int instance;      // SceneData.instances index
@@ -81,7 +112,6 @@ bool scene_trace(vec3 o, vec3 d, float tmin, float tmax, out SurfaceHit s) {
     s.t = h.t;
     s.position = sf.position;
     s.geo_normal = sf.geo_normal;
-    s.normal = sf.normal;
     s.uv = sf.uv;
     s.instance = h.instance;
     s.prim = h.prim;
@@ -89,7 +119,9 @@ bool scene_trace(vec3 o, vec3 d, float tmin, float tmax, out SurfaceHit s) {
     int mid = (sf.material < 0 || sf.material >= u_material_count) ? u_material_count : sf.material;
     s.material = mid;
     Material m = materials[mid];
-    s.bsdf = make_surface(m, scene_base_color(m, sf.uv));
+    MaterialSample ms = sample_material(u_textures, m, sf.uv);
+    s.normal = apply_normal_map(ms, sf.normal, sf.tangent);
+    s.bsdf = make_surface(material_at(m, ms), ms.base_color);
     return true;
 }
 
@@ -267,7 +299,8 @@ vec3 bsdf_hit_light_mis(vec3 o, vec3 d, float tmin, bool hit, SurfaceHit s, floa
             vec3 p1 = (inst.object_to_world * vec4(rt_verts[3 * s.prim + 1].xyz, 1.0)).xyz;
             vec3 p2 = (inst.object_to_world * vec4(rt_verts[3 * s.prim + 2].xyz, 1.0)).xyz;
             float area = 0.5 * length(cross(p1 - p0, p2 - p0));
-            float tri_power = area * (E.r + E.g + E.b) / 3.0 * PI;
+            vec3 Em = materials[s.material].emission.rgb;  // what EmitterSet weighted the triangle by
+            float tri_power = area * (Em.r + Em.g + Em.b) / 3.0 * PI;
             float tri_prob = tri_power / max(L.color.w, 1e-20);
             float lpdf = nee_light_prob(li) * tri_prob * area_to_solid_angle_pdf(o, s.position, s.geo_normal, area);
             w = power_heuristic(bsdf_pdf, lpdf);

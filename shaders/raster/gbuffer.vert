@@ -1,11 +1,12 @@
-// gbuffer.vert — G-buffer geometry stage: world position, normals, uv, material, and the
-// previous frame's clip position for motion vectors.
+// gbuffer.vert — G-buffer geometry stage: world position, normals, tangent, uv, material,
+// and the previous frame's clip position for motion vectors.
 #include "lib/common.glsl"
 
 in vec3 in_position;
 in vec3 in_normal;
 in vec2 in_uv;
 in float in_material;
+in vec4 in_tangent;  // xyz MikkTSpace tangent, w bitangent sign (zero: no normal map)
 
 uniform mat4 u_model;
 uniform mat4 u_prev_model;
@@ -16,6 +17,7 @@ uniform mat4 u_prev_view_proj;   // unjittered, previous frame
 
 out vec3 v_world;
 out vec3 v_normal;
+out vec4 v_tangent;
 out vec2 v_uv;
 flat out int v_material;
 out vec4 v_clip;
@@ -25,6 +27,7 @@ void main() {
     vec4 w = u_model * vec4(in_position, 1.0);
     v_world = w.xyz;
     v_normal = u_normal_matrix * in_normal;
+    v_tangent = vec4(mat3(u_model) * in_tangent.xyz, in_tangent.w);
     v_uv = in_uv;
     v_material = int(in_material + 0.5);
     v_clip = u_view_proj_nojit * w;

@@ -21,6 +21,8 @@ flat in int v_material;
 
 uniform sampler2DArray u_textures;
 uniform int u_material_count;
+uniform int u_alpha_test;
+uniform int u_alpha_seed;
 uniform int u_light;
 uniform vec3 u_origin;
 uniform vec3 u_fwd;
@@ -40,7 +42,11 @@ void main() {
     vec3 n = normalize(v_normal);
     if (dot(n, toL) < 0.0) n = -n;
     float NoL = clamp(dot(n, toL), 0.0, 1.0);
-    Surface s = make_surface(m, material_base_color(u_textures, m, v_uv));
+    MaterialSample ms = sample_material(u_textures, m, v_uv);
+    // alpha holes let light through (stochastic, as the shadow maps)
+    if (u_alpha_test == 1 && ms.alpha < 1.0 &&
+        alpha_hash_u01(uvec3(uvec2(gl_FragCoord.xy), uint(u_alpha_seed))) >= ms.alpha) discard;
+    Surface s = make_surface(material_at(m, ms), ms.base_color);
     vec3 rho = diffuse_albedo(s, max(NoL, 1e-4));
     vec3 flux;
     float area;  // the texel's surface area (the LPV geometry volume's blockers)

@@ -77,6 +77,7 @@ uniform sampler2D u_gb_albedo;
 uniform sampler2D u_gb_position;
 uniform sampler2D u_gb_normal;
 uniform sampler2D u_gb_geonormal;
+uniform sampler2D u_gb_emission;
 uniform sampler2D u_gb_motion;
 uniform sampler2D u_in_y;       // STAGE 0: last frame's final reservoirs; STAGE 1: this frame's
 uniform sampler2D u_in_meta;
@@ -121,7 +122,9 @@ Shading make_shading(vec3 P, vec3 N, vec3 Ng, Surface s, bool valid) {
 
 Shading load(ivec2 q) {
     vec4 pos = texelFetch(u_gb_position, q, 0);
-    Surface s = make_surface(scene_material(int(pos.w + 0.5)), texelFetch(u_gb_albedo, q, 0).rgb);
+    Material m = scene_material(int(pos.w + 0.5));
+    Surface s = gbuffer_surface(m, texelFetch(u_gb_albedo, q, 0), texelFetch(u_gb_normal, q, 0),
+                                texelFetch(u_gb_geonormal, q, 0), texelFetch(u_gb_emission, q, 0).rgb);
     return make_shading(pos.xyz, texelFetch(u_gb_normal, q, 0).xyz, texelFetch(u_gb_geonormal, q, 0).xyz, s,
                         pos.w >= 0.0);
 }

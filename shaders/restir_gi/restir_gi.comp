@@ -92,7 +92,9 @@ Shading load(ivec2 q) {
     // the two-sided frame of surface_frame(): both normals to V's side
     if (dot(sh.Ng, sh.V) < 0.0) { sh.Ng = -sh.Ng; sh.N = -sh.N; }
     if (dot(sh.N, sh.V) <= 0.0) sh.N = sh.Ng;
-    sh.s = make_surface(scene_material(int(pos.w + 0.5)), texelFetch(u_gb_albedo, q, 0).rgb);
+    Material m = scene_material(int(pos.w + 0.5));
+    sh.s = gbuffer_surface(m, texelFetch(u_gb_albedo, q, 0), texelFetch(u_gb_normal, q, 0),
+                           texelFetch(u_gb_geonormal, q, 0), m.emission.rgb);
     sh.p = rt_offset_ray(sh.P, sh.Ng);
     return sh;
 }

@@ -36,7 +36,9 @@ GPixel fetch_g(ivec2 px) {
 
 #ifdef USE_SCENE_BUFFERS
 Surface fetch_surface(ivec2 px, int mid) {
-    return make_surface(materials[mid], texelFetch(u_gb_albedo, px, 0).rgb);
+    Material m = materials[mid];
+    return gbuffer_surface(m, texelFetch(u_gb_albedo, px, 0), texelFetch(u_gb_normal, px, 0),
+                           texelFetch(u_gb_geonormal, px, 0), m.emission.rgb);
 }
 
 // How far a pixel's radiance toward the camera (aov.direct) stands for its radiance in

@@ -95,7 +95,8 @@ void main() {
     if (k1 < k0) discard;
     int mid = (g_material >= 0 && g_material < u_material_count) ? g_material : u_material_count;
     Material m = materials[mid];
-    Surface s = make_surface(m, material_base_color(u_textures, m, g_uv));
+    MaterialSample ms = sample_material(u_textures, m, g_uv);
+    Surface s = make_surface(material_at(m, ms), ms.base_color);
     vec3 rho = diffuse_albedo(s, 0.5);  // the Lambertian layer's albedo at 60 degrees (see the page)
     vec3 n = normalize(g_normal);
     if (dot(n, n) < 0.5) n = un;

@@ -33,7 +33,7 @@ from dataclasses import replace
 
 from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Param, Pass, Res
 from ..gpu_scene import set_uniform
-from .gbuffer import ALBEDO, MOTION, NORMAL, POSITION, GBufferPass
+from .gbuffer import ALBEDO, EMISSION, MOTION, NORMAL, POSITION, GBufferPass
 from .screen_space import Units, bind_frame
 
 COLOR = "color"
@@ -111,11 +111,11 @@ class _FilterPass(Pass):
     def _modulate(self, rc, src, dst, demod: bool):
         res = rc.resources
         prog = rc.programs.compute("filters/modulate.comp")
-        rc.scene.bind(prog)  # materials: the emission that bypasses demodulation
         units = Units(1)
         units.tex(prog, "u_in", res[src])
         units.tex(prog, "u_gb_albedo", res[ALBEDO])
         units.tex(prog, "u_gb_position", res[POSITION])
+        units.tex(prog, "u_gb_emission", res[EMISSION])  # the emission that bypasses demodulation
         set_uniform(prog, "u_demod", 1 if demod else 0)
         res[dst].bind_to_image(0, read=False, write=True)
         self._run(rc, prog)
@@ -126,7 +126,7 @@ class AtrousPass(_FilterPass):
     """Edge-avoiding à-trous wavelet filter of ``color`` (no temporal state)."""
 
     name = "atrous"
-    reads = (COLOR, ALBEDO, NORMAL, POSITION)
+    reads = (COLOR, ALBEDO, NORMAL, POSITION, EMISSION)
     writes = (COLOR, "atrous.a", "atrous.b")
     declared = (Res(COLOR, check="radiance"), Res("atrous.a", check="radiance"), Res("atrous.b", check="radiance"))
     history_resets = frozenset()
@@ -150,7 +150,7 @@ class SVGFPass(_FilterPass):
     """Spatiotemporal variance-guided filtering of ``color``."""
 
     name = "svgf"
-    reads = (COLOR, ALBEDO, NORMAL, POSITION, MOTION, "svgf.illum@prev", "svgf.moments@prev", "svgf.pos@prev",
+    reads = (COLOR, ALBEDO, NORMAL, POSITION, MOTION, EMISSION, "svgf.illum@prev", "svgf.moments@prev", "svgf.pos@prev",
              "svgf.nrm@prev")
     writes = (COLOR, "svgf.illum", "svgf.moments", "svgf.pos", "svgf.nrm", "svgf.a", "svgf.b", "svgf.dbg_var",
               "svgf.dbg_len")
@@ -189,9 +189,9 @@ class SVGFPass(_FilterPass):
         res = rc.resources
         prog = rc.programs.compute("filters/svgf_temporal.comp")
         bind_frame(rc, prog, frame)
-        rc.scene.bind(prog)  # materials: the emission that bypasses demodulation
         units = Units(1)
         for uni, name in (("u_color", COLOR), ("u_gb_albedo", ALBEDO), ("u_gb_position", POSITION),
+                          ("u_gb_emission", EMISSION),
                           ("u_gb_normal", NORMAL), ("u_gb_motion", MOTION), ("u_hist_illum", "svgf.illum@prev"),
                           ("u_hist_moments", "svgf.moments@prev"), ("u_hist_pos", "svgf.pos@prev"),
                           ("u_hist_nrm", "svgf.nrm@prev")):

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
-from .gbuffer import ALBEDO, GEONORMAL, MOTION, NORMAL, POSITION
+from .gbuffer import ALBEDO, EMISSION, GEONORMAL, MOTION, NORMAL, POSITION
 from .screen_space import camera_vectors
 
 COLOR = "color"
@@ -40,7 +40,7 @@ class RestirDIPass(Pass):
     kind = "compute"
     provides = frozenset({Effect.DIRECT, Effect.SHADOWS, Effect.EMISSION, Effect.ENVIRONMENT})
     always = True
-    reads = (ALBEDO, NORMAL, POSITION, GEONORMAL, MOTION, *(h + "@prev" for h in _HIST), "restir.pos@prev",
+    reads = (ALBEDO, NORMAL, POSITION, GEONORMAL, MOTION, EMISSION, *(h + "@prev" for h in _HIST), "restir.pos@prev",
              "restir.nrm@prev")
     writes = (COLOR, AOV_DIRECT, AOV_EMIT, DBG_W, DBG_M, *_HIST, "restir.pos", "restir.nrm", *_TMP)
     declared = (Res(COLOR, check="radiance"), Res(AOV_DIRECT, check="radiance"), Res(AOV_EMIT, check="radiance"),
@@ -111,7 +111,7 @@ class RestirDIPass(Pass):
             src = [h + "@prev" for h in _HIST] if stage == 0 else list(_TMP)
             unit = 1
             for uni, name in (("u_gb_albedo", ALBEDO), ("u_gb_position", POSITION), ("u_gb_normal", NORMAL),
-                              ("u_gb_geonormal", GEONORMAL), ("u_gb_motion", MOTION),
+                              ("u_gb_geonormal", GEONORMAL), ("u_gb_motion", MOTION), ("u_gb_emission", EMISSION),
                               ("u_prev_pos", "restir.pos@prev"), ("u_prev_nrm", "restir.nrm@prev"),
                               ("u_in_y", src[0]), ("u_in_meta", src[1]), ("u_in_le", src[2])):
                 res[name].use(unit)

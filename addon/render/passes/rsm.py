@@ -233,6 +233,7 @@ class RSMPass(Pass):
         ctx = rc.ctx
         prog = rc.programs.program("raster3d/rsm.vert", "raster3d/rsm.frag")
         rc.scene.bind(prog)
+        set_uniform(prog, "u_alpha_seed", int((frame.sample * 2654435761 + frame.seed * 40503 + 29) & 0x7FFFFFFF))
         self.fbo.use()
         self.fbo.clear(0.0, 0.0, 0.0, 0.0, depth=1.0)
         ctx.enable(moderngl.DEPTH_TEST)

@@ -396,6 +396,8 @@ class ShadowPass(Pass):
         table = np.zeros((max(1, len(views)), VIEW_FLOATS), np.float32)
         light_views = {}
         prog = rc.programs.program("raster/shadow.vert", "raster/shadow.frag")
+        rc.scene.bind(prog)  # materials and textures: alpha holes let light through
+        set_uniform(prog, "u_alpha_seed", int((frame.sample * 2654435761 + frame.seed * 40503 + 17) & 0x7FFFFFFF))
         self.fbo.use()
         # empty texels read as occluded: a PCF footprint reaching past the edge of a closed
         # room (zero-thickness walls) must not pick up "lit" from the void outside

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..framegraph import Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
-from ..passes.gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION, GBufferPass
+from ..passes.gbuffer import ALBEDO, EMISSION, GEONORMAL, NORMAL, POSITION, GBufferPass
 from ..passes.light_cull import (BIND_TILE_LIGHTS, LIGHT_CULL, TILE, TILE_LIGHTS, LightCuller,
                                   LightCullPass)
 from ..passes.shadows import ATLAS, SHADOW_SELECTION, VIEWS, WORLD_RANGE, ShadowPass
@@ -44,7 +44,7 @@ class DirectLightPass(Pass):
     name = "direct_light"
     provides = frozenset({Effect.DIRECT, Effect.EMISSION, Effect.ENVIRONMENT})
     always = True  # produces the colour every technique builds on
-    reads = (ALBEDO, NORMAL, POSITION, GEONORMAL)
+    reads = (ALBEDO, NORMAL, POSITION, GEONORMAL, EMISSION)
     # the shadow pass runs only if something casts shadows; graphs without the light_cull
     # pass (techniques built on DIRECT's passes) get their tile lists culled here, inline
     optional_reads = (ATLAS, VIEWS, WORLD_RANGE, SHADOW_SELECTION, TILE_LIGHTS, LIGHT_CULL)
@@ -120,6 +120,8 @@ class DirectLightPass(Pass):
                                             (POSITION, "u_gb_position"), (GEONORMAL, "u_gb_geonormal")), start=1):
             res[name].use(unit)
             set_uniform(prog, uni, unit)
+        res[EMISSION].use(6)
+        set_uniform(prog, "u_gb_emission", 6)
         if ATLAS in res and VIEWS in res:  # present when the shadow pass ran (now or before)
             res[ATLAS].use(5)
             res[VIEWS].bind_to_storage_buffer(3)
