@@ -387,7 +387,8 @@ class _Exporter:
         msg = f"Material '{mat.name}': {reason}; using the viewport colour"
         return Material(name=mat.name, base_color=_rgb(mat.diffuse_color),
                         metallic=float(mat.metallic), roughness=float(mat.roughness),
-                        alpha=float(mat.diffuse_color[3]), exact=False, warnings=[msg])
+                        alpha=float(mat.diffuse_color[3]), exact=False, warnings=[msg],
+                        support=f"unsupported: {reason}; the viewport colour stands in")
 
     def _convert_material(self, mat) -> Material:
         tree = _node_tree(mat)
