@@ -14,6 +14,7 @@ import logging
 import numpy as np
 
 from .scene_data import AreaShape, LightType, SceneData, SceneError
+from .shaders import bind_tables
 from .world_map import WorldGPU
 
 log = logging.getLogger(__name__)
@@ -431,6 +432,7 @@ class GPUScene:
         set_uniform(prog, "u_alpha_test", 1 if self.scene is not None and has_alpha(self.scene) else 0)
         if self.scene is not None:
             self.world.bind(prog, self.scene.world, self.scene.film_transparent)
+        bind_tables(self.ctx, prog)  # the BRDF tables' unit, should anything have taken it
 
     def vao(self, key: str, prog):
         vk = (key, prog.glo)

@@ -115,6 +115,43 @@ def library() -> ShaderLibrary:
     return _default
 
 
+BRDF_LUT_UNIT = 30  # fixed texture unit of lib/brdf_tables.glsl's u_brdf_lut
+_luts: dict = {}
+
+
+def brdf_lut(ctx):
+    """Cycles' GGX albedo tables (render/brdf_tables.py) as one R32F texture of ``ctx``
+    (1024 x 6: GGX_E, GGX_EAVG, then GGX_SCHLICK_S in four rows), made once per context."""
+    key = id(ctx)
+    hit = _luts.get(key)
+    if hit is not None and hit[0] is ctx:
+        return hit[1]
+    import numpy as np
+
+    from . import brdf_tables as T
+
+    data = np.zeros((6, 1024), np.float32)
+    data[0, :1024] = T.GGX_E
+    data[1, :32] = T.GGX_EAVG
+    data[2:6] = np.asarray(T.GGX_SCHLICK_S, np.float32).reshape(4, 1024)
+    tex = ctx.texture((1024, 6), 1, data.tobytes(), dtype="f4")
+    import moderngl
+
+    tex.filter = (moderngl.NEAREST, moderngl.NEAREST)
+    _luts[key] = (ctx, tex)
+    return tex
+
+
+def bind_tables(ctx, prog) -> None:
+    """Point a program's u_brdf_lut at the tables (texture and sampler unit)."""
+    try:
+        u = prog["u_brdf_lut"]
+    except KeyError:
+        return
+    brdf_lut(ctx).use(BRDF_LUT_UNIT)
+    u.value = BRDF_LUT_UNIT
+
+
 class ProgramCache:
     """Compiled programs of one GL context, keyed by (stages, defines). Compile once, reuse."""
 
@@ -138,6 +175,7 @@ class ProgramCache:
                 prog = self.ctx.compute_shader(src.text)
             except Exception as exc:
                 raise ShaderError(f"compiling {rel}: {src.explain(str(exc))}") from None
+            bind_tables(self.ctx, prog)
             self._programs[key] = prog
             self.compile_ms += (time.perf_counter() - t0) * 1e3
         return prog
@@ -161,6 +199,7 @@ class ProgramCache:
                 low = msg.lower()
                 where = fs if fs is not None and "fragment" in low else gs if gs is not None and "geometry" in low else vs
                 raise ShaderError(f"compiling {vertex} + {geometry or ''} + {fragment}: {where.explain(msg)}") from None
+            bind_tables(self.ctx, prog)
             self._programs[key] = prog
             self.compile_ms += (time.perf_counter() - t0) * 1e3
         return prog

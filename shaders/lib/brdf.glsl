@@ -110,15 +110,15 @@ float ggx_E(float rough, float mu) {
     int i0 = min(int(x), 31), j0 = min(int(y), 31);
     int i1 = min(i0 + 1, 31), j1 = min(j0 + 1, 31);
     float tx = x - float(i0), ty = y - float(j0);
-    float a = mix(GGX_E[i0 * 32 + j0], GGX_E[i1 * 32 + j0], tx);
-    float b = mix(GGX_E[i0 * 32 + j1], GGX_E[i1 * 32 + j1], tx);
+    float a = mix(GGX_E_at(i0 * 32 + j0), GGX_E_at(i1 * 32 + j0), tx);
+    float b = mix(GGX_E_at(i0 * 32 + j1), GGX_E_at(i1 * 32 + j1), tx);
     return max(mix(a, b, ty), 1e-4);
 }
 
 float ggx_Eavg(float rough) {
     float x = clamp(rough, 0.0, 1.0) * 31.0;
     int i0 = min(int(x), 31), i1 = min(i0 + 1, 31);
-    return mix(GGX_EAVG[i0], GGX_EAVG[i1], x - float(i0));
+    return mix(GGX_EAVG_at(i0), GGX_EAVG_at(i1), x - float(i0));
 }
 
 float _schlick_s_at(int k, float x, float y) {
@@ -126,8 +126,8 @@ float _schlick_s_at(int k, float x, float y) {
     int i1 = min(i0 + 1, 15), j1 = min(j0 + 1, 15);
     float tx = x - float(i0), ty = y - float(j0);
     int o = k * 256;
-    float a = mix(GGX_SCHLICK_S[o + j0 * 16 + i0], GGX_SCHLICK_S[o + j0 * 16 + i1], tx);
-    float b = mix(GGX_SCHLICK_S[o + j1 * 16 + i0], GGX_SCHLICK_S[o + j1 * 16 + i1], tx);
+    float a = mix(GGX_SCHLICK_S_at(o + j0 * 16 + i0), GGX_SCHLICK_S_at(o + j0 * 16 + i1), tx);
+    float b = mix(GGX_SCHLICK_S_at(o + j1 * 16 + i0), GGX_SCHLICK_S_at(o + j1 * 16 + i1), tx);
     return mix(a, b, ty);
 }
 
