@@ -72,6 +72,15 @@ def _luminance(rgb: np.ndarray) -> np.ndarray:
     return rgb[..., 0] * 0.2126 + rgb[..., 1] * 0.7152 + rgb[..., 2] * 0.0722
 
 
+def _dilate(a: np.ndarray) -> np.ndarray:
+    """3x3 maximum (u wraps around, v is clamped)."""
+    m = np.maximum(a, np.maximum(np.roll(a, 1, axis=1), np.roll(a, -1, axis=1)))
+    out = m.copy()
+    out[1:] = np.maximum(out[1:], m[:-1])
+    out[:-1] = np.maximum(out[:-1], m[1:])
+    return out
+
+
 def _block_mean(a: np.ndarray, h: int, w: int) -> np.ndarray:
     """Mean of a (H, W) array over an h x w grid of equal blocks (H, W multiples of h, w)."""
     H, W = a.shape
@@ -113,7 +122,10 @@ class WorldMap:
         gh = H
         while gh > SAMPLE_GRID[1] and gh % 2 == 0:
             gh //= 2
-        lum = _block_mean(_luminance(px.astype(np.float64)), gh, gw)
+        # the density follows the luminance dilated by one texel: a bilinear lookup reaches
+        # half a texel into the next cell, so a dark cell beside a bright texel must not have
+        # a density far below the radiance it returns (fireflies: L / pdf)
+        lum = _block_mean(_dilate(_luminance(px.astype(np.float64))), gh, gw)
         cell_sa = pixel_solid_angles(gw, gh)
         weight = lum * cell_sa
         total = weight.sum()
