@@ -204,7 +204,15 @@ def run_techniques(args, n, bpy, np, reference, export_scene, session) -> dict:
         for tech in args.techniques.split(","):
             kind = "full" if tech == "PT" else "direct"
             if kind not in refs:
-                refs[kind], row[f"cycles_{kind}_ref_ms"] = reference.render_cycles(sc, args.ref_spp, kind)
+                cpath = (Path(args.ref_cache) / f"{args.kinds}_{args.world}_{n}_{args.res}_{args.ref_spp}_{kind}.npy"
+                         if args.ref_cache else None)
+                if cpath is not None and cpath.exists():  # the same scene in a before/after pair
+                    refs[kind] = np.load(cpath)
+                else:
+                    refs[kind], row[f"cycles_{kind}_ref_ms"] = reference.render_cycles(sc, args.ref_spp, kind)
+                    if cpath is not None:
+                        cpath.parent.mkdir(parents=True, exist_ok=True)
+                        np.save(cpath, refs[kind])
             ref = refs[kind]
             q = 0 if tech == "PT" else args.quality
             img, fms, tot, frames, r, warm = time_technique(session, sd, tech, q, args.samples, args.frame_budget)
@@ -280,6 +288,7 @@ def main(argv=None):
     ap.add_argument("--kinds", default="point", choices=("point", "mix"),
                     help="point: 5 cm sphere lights; mix: points, 5 cm spheres and 25 cm area lights in turn")
     ap.add_argument("--world", default="dark", help="dark, or a bundled HDRI name (forest, city, ...)")
+    ap.add_argument("--ref-cache", default=None, help="folder keeping the Cycles references between runs")
     ap.add_argument("--name", default="many_lights", help="result file prefix (with --techniques)")
     ap.add_argument("--lock", default=None,
                     help="a file to flock around each light count's renders (shared machines: others run between)")

@@ -251,13 +251,18 @@ Reservoir empty_reservoir() {
 #define SPHERE_AREA_MIX 0.25
 float sphere_area_mix() { return u_bias_mode == 0 ? SPHERE_AREA_MIX : 0.0; }
 
+// Probability that the light strategy picks light li at sh: the light tree with the
+// surface's normal (lights wholly below its horizon are never candidates; the target
+// function is 0 there), the world taking u_world_select.
+float restir_light_prob(int li, Shading sh) { return light_pdf(li, sh.p, sh.Ng) * (1.0 - u_world_select); }
+
 // Solid-angle pdf with which light sampling (select_light + sample_light) produces sample x
 // from sh (delta lights: the selection probability).
 float light_strategy_pdf(Shading sh, Sample x, float mesh_tri_pdf) {
     if (x.li < 0) return u_world_select > 0.0 ? u_world_select * world_pdf(x.y) : 0.0;  // the world map
     Light L = lights[x.li];
     int type = int(L.pos_type.w + 0.5);
-    float sel = nee_light_prob(x.li, sh.p);
+    float sel = restir_light_prob(x.li, sh);
     if (type == LIGHT_SUN) return L.dir_radius.w <= 1e-6 ? sel : sel * cone_pdf(cos(L.dir_radius.w));
     if (type == LIGHT_POINT || type == LIGHT_SPOT) {
         float r = L.dir_radius.w;
@@ -318,7 +323,7 @@ bool light_candidate(Shading sh, vec4 u, out Sample x, out float pl) {
     }
     if (u_light_count <= 0) return false;
     float sel;
-    int li = select_light((u.x - u_world_select) / (1.0 - u_world_select), sh.p, vec3(0.0), sel);
+    int li = select_light((u.x - u_world_select) / (1.0 - u_world_select), sh.p, sh.Ng, sel);
     sel *= 1.0 - u_world_select;
     Light L = lights[li];
     int type = int(L.pos_type.w + 0.5);
@@ -411,7 +416,7 @@ bool bsdf_candidate(Shading sh, vec3 u, bool analytic, out Sample x, out float p
         vec3 E = hs.bsdf.emission;
         float tri_prob = area * (E.r + E.g + E.b) / 3.0 * PI / max(L.color.w, 1e-20);
         x.li = li; x.y = hs.position; x.n = hs.geo_normal; x.Le = E;
-        pl = nee_light_prob(li, sh.p) * tri_prob * area_to_solid_angle_pdf(sh.p, hs.position, hs.geo_normal, area);
+        pl = restir_light_prob(li, sh) * tri_prob * area_to_solid_angle_pdf(sh.p, hs.position, hs.geo_normal, area);
         return true;
     }
     int suns = u_light_tree >= 0 ? int(rt_light_select[u_light_tree + 4]) : 0;
