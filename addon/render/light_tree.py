@@ -11,9 +11,9 @@ Two binary trees over the scene's lights, both built by one builder (``build_tre
 * the **light BVH** over the lights a BSDF ray can hit (area lights, point and spot lights
   with a radius): ``bsdf_hit_light_mis`` intersects it instead of testing every light.
 
-Both are balanced trees over the lights sorted by the Morton code of their bounds' centres
-(node ``[lo, hi)`` splits at ``(lo + hi) // 2``), so a leaf's root-to-leaf path follows from
-its position in that order alone: ``light_pdf`` retraces it and computes the same products
+Both are balanced trees: each node's lights are sorted along the longest axis of their
+centres' bounds and split at the median (node ``[lo, hi)`` splits at ``(lo + hi) // 2``), so a
+leaf's root-to-leaf path follows from its position in the final order alone: ``light_pdf`` retraces it and computes the same products
 as the sampler did. Node layout (16 floats, ``NODE_FLOATS``):
 
     [0:3] bounds min, [3] energy (the selection weight: power, as rt_scene.light_selection)
@@ -38,16 +38,6 @@ import numpy as np
 NODE_FLOATS = 16
 HEADER_FLOATS = 8
 LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN, LIGHT_AREA, LIGHT_MESH = 0, 1, 2, 3, 4
-
-
-def _morton(c: np.ndarray) -> np.ndarray:
-    lo, hi = c.min(axis=0), c.max(axis=0)
-    q = ((c - lo) / np.maximum(hi - lo, 1e-12) * 1023.0).astype(np.uint64).clip(0, 1023)
-    code = np.zeros(len(c), np.uint64)
-    for b in range(10):
-        for a in range(3):
-            code |= ((q[:, a] >> np.uint64(b)) & np.uint64(1)) << np.uint64(3 * b + a)
-    return code
 
 
 def _cone_union(ax_a, to_a, te_a, ax_b, to_b, te_b):
@@ -75,15 +65,15 @@ def _cone_union(ax_a, to_a, te_a, ax_b, to_b, te_b):
 
 
 def build_tree(ids, bmin, bmax, energy, axis, theta_o, theta_e):
-    """Balanced binary tree over m items (Morton order of their bounds' centres). Returns
+    """Balanced binary tree over m items (median splits along the longest axis of each node's
+    centres). Returns
     (nodes (2m - 1, NODE_FLOATS) float32, pos (m,) int: each item's leaf position)."""
     m = len(ids)
     if m == 0:
         return np.zeros((0, NODE_FLOATS), np.float32), np.zeros(0, np.int64)
     bmin, bmax = np.asarray(bmin, np.float64), np.asarray(bmax, np.float64)
-    order = np.argsort(_morton(0.5 * (bmin + bmax)), kind="stable")
-    pos = np.empty(m, np.int64)
-    pos[order] = np.arange(m)
+    cen = 0.5 * (bmin + bmax)
+    order = np.arange(m)  # item at each position; each level sorts its nodes' ranges
     total = 2 * m - 1
     lo = np.zeros(total, np.int64)
     hi = np.zeros(total, np.int64)
@@ -97,6 +87,16 @@ def build_tree(ids, bmin, bmax, energy, axis, theta_o, theta_e):
         inner = cur[hi[cur] - lo[cur] > 1]
         if inner.size == 0:
             break
+        # sort each node's range along the longest axis of its centres' bounds (median split)
+        inner = inner[np.argsort(lo[inner], kind="stable")]
+        sizes = hi[inner] - lo[inner]
+        offs = np.cumsum(sizes) - sizes
+        rep = np.repeat(np.arange(inner.size), sizes)
+        at = lo[inner][rep] + np.arange(int(sizes.sum())) - offs[rep]
+        cc = cen[order[at]]
+        ax = np.argmax(np.maximum.reduceat(cc, offs, axis=0) - np.minimum.reduceat(cc, offs, axis=0), axis=1)
+        key = cc[np.arange(len(at)), ax[rep]]
+        order[at] = order[at][np.lexsort((key, rep))]
         k = inner.size
         lc = nxt + 2 * np.arange(k)
         rc = lc + 1
@@ -134,6 +134,8 @@ def build_tree(ids, bmin, bmax, energy, axis, theta_o, theta_e):
         nax[inner] = np.where(only_a[:, None], nax[a], np.where(only_b[:, None], nax[b], ax))
         nto[inner] = np.where(only_a, nto[a], np.where(only_b, nto[b], to))
         nte[inner] = np.where(only_a, nte[a], np.where(only_b, nte[b], te))
+    pos = np.empty(m, np.int64)
+    pos[order] = np.arange(m)
     nodes = np.zeros((total, NODE_FLOATS), np.float32)
     nodes[:, 0:3], nodes[:, 3] = nb_min, ne
     nodes[:, 4:7], nodes[:, 7] = nb_max, np.where(nto >= np.pi, -1.0, np.cos(nto))
