@@ -30,6 +30,18 @@ each row has it without the 0.1 % worst pixels (``*_relmse_trim``): on this scen
 metal ball's sub-pixel highlights of the 5 cm lights can put most of an image's relMSE in
 one or two pixels.
 
+``--techniques PT,RESTIR_DI`` measures only those techniques: ms/frame and relMSE at
+``--samples`` frames against Cycles at ``--ref-spp`` (PT: full light transport, the others:
+direct light), on the scene with ``--kinds mix`` (points, 5 cm spheres and 25 cm area
+lights facing down in turn) and ``--world forest`` (a bundled HDRI, dimmed); ``--ref-cache``
+keeps the references for the other checkout's run. The light-tree numbers in
+docs/results/light_tree.md:
+
+    .venv/bin/python scripts/bench_lights.py --repo /tmp/gi_before --label before \
+        --techniques PT,RESTIR_DI --kinds mix --world forest --counts 10,100,1000,10000 \
+        --res 64 --ref-spp 128 --ref-cache /tmp/refs --name light_tree
+    .venv/bin/python scripts/bench_lights.py --label after (same options)
+
 Writes ``<out>/many_lights_<label>.json``; the ``after`` run also writes
 ``<out>/many_lights.md`` and ``many_lights.json`` with the before numbers side by side when
 ``many_lights_before.json`` exists.

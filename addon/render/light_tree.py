@@ -8,6 +8,7 @@ Two binary trees over the scene's lights, both built by one builder (``build_tre
   2018, "Importance Sampling of Many Lights with Adaptive Tree Splitting": power, distance,
   the emitters' orientation cone and, optionally, the receiver's normal); suns stay outside
   it as global lights chosen by their own power share, as the world is (``u_world_select``);
+  a tenth of the samples (``POWER_MIX``) picks by power alone (a defensive mixture);
 * the **light BVH** over the lights a BSDF ray can hit (area lights, point and spot lights
   with a radius): ``bsdf_hit_light_mis`` intersects it instead of testing every light.
 
@@ -36,6 +37,10 @@ from __future__ import annotations
 import numpy as np
 
 NODE_FLOATS = 16
+# Share of the samples select_light(u, p, n) picks by power alone (light_select.glsl's
+# LT_POWER_MIX): a defensive mixture bounding every light's probability below by 0.1 x its
+# power share.
+POWER_MIX = 0.1
 HEADER_FLOATS = 8
 LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN, LIGHT_AREA, LIGHT_MESH = 0, 1, 2, 3, 4
 
@@ -282,5 +287,5 @@ def table_pdf(table: np.ndarray, offset: int, light: int, flat_prob: float, p, n
     if pos < 0:
         return float(flat_prob)
     nodes = table[o_nodes:o_nodes + NODE_FLOATS * (2 * size - 1)].reshape(-1, NODE_FLOATS).astype(np.float64)
-    return tree_prob * tree_pdf(nodes, pos, size, np.asarray(p, np.float64),
-                                None if n is None else np.asarray(n, np.float64))
+    return POWER_MIX * float(flat_prob) + (1.0 - POWER_MIX) * tree_prob * tree_pdf(
+        nodes, pos, size, np.asarray(p, np.float64), None if n is None else np.asarray(n, np.float64))

@@ -81,10 +81,26 @@ float lt_left_prob(int nodes, int b, vec3 p, vec3 n) {
     return il + ir > 0.0 ? il / (il + ir) : 0.5;
 }
 
+// Defensive mixture: this share of the samples picks a light by power alone, so no light's
+// probability falls below LT_POWER_MIX x its power share where the tree's importance bound
+// underrates it (a light near p inside a large cluster): the tail of rare bright samples stays
+// bounded by the power-only estimator's (light_tree.POWER_MIX).
+#define LT_POWER_MIX 0.1
+
+float light_pdf(int i, vec3 p, vec3 n);
+
 // One light by importance at (p, n): with the tree's share of the power a walk down the tree
-// (u rescaled at every node), else a sun by its power. prob = the probability of that light.
+// (u rescaled at every node), else a sun by its power; LT_POWER_MIX of the samples by power
+// alone. prob = the probability of that light (= light_pdf(i, p, n)).
 int select_light(float u, vec3 p, vec3 n, out float prob) {
     if (u_light_tree < 0) { prob = 0.0; return 0; }
+    if (u < LT_POWER_MIX) {
+        float pp;
+        int i = select_light(u / LT_POWER_MIX, pp);
+        prob = light_pdf(i, p, n);
+        return i;
+    }
+    u = (u - LT_POWER_MIX) / (1.0 - LT_POWER_MIX);
     int h = u_light_tree;
     int size = int(rt_light_select[h + 1]);
     float tree_prob = rt_light_select[h + 2];
@@ -95,7 +111,11 @@ int select_light(float u, vec3 p, vec3 n, out float prob) {
         int b = nodes;
         for (int depth = 0; depth < 64; ++depth) {
             float left = rt_light_select[b + 12];
-            if (left < 0.0) return int(-1.0 - left + 0.5);
+            if (left < 0.0) {
+                int i = int(-1.0 - left + 0.5);
+                prob = LT_POWER_MIX * light_pdf(i) + (1.0 - LT_POWER_MIX) * prob;
+                return i;
+            }
             float pl = lt_left_prob(nodes, b, p, n);
             if (u < pl) {
                 u = clamp(u / pl, 0.0, 0.99999994);
@@ -130,14 +150,14 @@ float light_pdf(int i, vec3 p, vec3 n) {
     if (u_light_tree < 0) return 0.0;
     int h = u_light_tree;
     int pos = int(rt_light_select[int(rt_light_select[h + 3]) + i]);
-    if (pos < 0) return light_pdf(i);  // a sun: its power share
+    if (pos < 0) return light_pdf(i);  // a sun: its power share either way
     int nodes = int(rt_light_select[h]);
     int lo = 0, hi = int(rt_light_select[h + 1]);
     float prob = rt_light_select[h + 2];
     int b = nodes;
     for (int depth = 0; depth < 64; ++depth) {
         float left = rt_light_select[b + 12];
-        if (left < 0.0) return prob;
+        if (left < 0.0) return LT_POWER_MIX * light_pdf(i) + (1.0 - LT_POWER_MIX) * prob;
         float pl = lt_left_prob(nodes, b, p, n);
         int mid = (lo + hi) / 2;
         if (pos < mid) {
