@@ -2,7 +2,8 @@
 
 ``SceneRT`` (one per ``GPUScene``, from ``gpu_scene.rt()``) owns the two-level BVH on the GPU
 (``RtBuffers``: the SSBOs of ``shaders/lib/bvh.glsl``) and the light-selection table of
-``shaders/lib/scene_rt.glsl``; with the GPUScene's material, light and emitter buffers and
+``shaders/lib/scene_rt.glsl`` (power CDF, mesh lights, world map tables, and the light tree
+and light BVH of ``light_tree.py`` / ``shaders/lib/light_select.glsl``); with the GPUScene's material, light and emitter buffers and
 texture array it is everything a compute pass needs to call ``scene_trace``,
 ``scene_occluded``, ``select_light``/``light_pdf``, ``shade_direct`` and
 ``bsdf_hit_light_mis``. Two graphs of a session share one SceneRT, hence one BVH. It rebuilds
