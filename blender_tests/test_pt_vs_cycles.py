@@ -231,6 +231,7 @@ SCENES = {
     "emissive_panel": scene_emissive_panel,
     "world": scene_world,
     "textured": scene_textured,
+    "many_lights": D._many_lights,  # 256 sphere lights + 3 emissive strips: the light tree and light BVH
 }
 
 

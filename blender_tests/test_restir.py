@@ -1,8 +1,8 @@
 """RESTIR_DI (issue 11) on the many-light demo scene (256 coloured point lights + emissive
 strips), against Cycles direct-only (256 spp, cached):
 
-* equal time per frame against light sampling by power (``baseline_spp`` of the same pass:
-  the shared select_light/sample_light, one shadow ray per sample, plus a BSDF ray per sample
+* equal time per frame against next-event estimation (``baseline_spp`` of the same pass:
+  the shared light-tree select_light/sample_light, one shadow ray per sample, plus a BSDF ray per sample
   for the world light, no reuse). The baseline's frame time is measured at 1 and 16 spp on
   this machine (fitted as a + b spp) and it runs with the spp whose time equals RESTIR_DI's
   measured frame time. relMSE after 1 frame (mean over cold-start frames) and after 16 still
@@ -108,12 +108,15 @@ def test_restir_di_beats_light_sampling_at_equal_time(many_lights):
     print(f"  mean / Cycles: 16th frame {still[-1].image[..., :3].mean() / ref.mean():.3f}, "
           f"accumulated {racc.image[..., :3].mean() / ref.mean():.3f}")
     assert np.isfinite(racc.image).all()
-    # measured at 40 px (RESTIR_DI.md): 6.2x after 1 frame, 6.5x for the 16th frame, 5.1x
-    # accumulated (baseline 8 spp, 35 ms vs 39 ms); an earlier run with a worse time fit: 4.8x,
-    # 5.0x, 3.7x. The baseline's single-frame relMSE is heavy-tailed (fireflies), so margins
-    assert b1 >= 2.5 * r1, f"after 1 frame only {b1 / r1:.2f}x lower relMSE"
-    assert b1 >= 2.5 * r16f, f"16th frame only {b1 / r16f:.2f}x lower relMSE"
-    assert b16 >= 1.8 * r16, f"after 16 accumulated frames only {b16 / r16:.2f}x lower relMSE"
+    # The baseline is the shared next-event estimator, which picks lights by the light tree
+    # (lib/light_select.glsl); RESTIR_DI's candidates are by power. Measured at 40 px
+    # (RESTIR_DI.md): 1.5x after 1 frame, 2.0x for the 16th frame, 1.5x accumulated (baseline
+    # 10 spp, 73 ms vs 39 ms: the time fit gave it more than equal time). Against the
+    # power-only estimator the same test measured 6.2x, 6.5x and 5.1x. The baseline's
+    # single-frame relMSE is heavy-tailed (fireflies), so margins
+    assert b1 >= 1.2 * r1, f"after 1 frame only {b1 / r1:.2f}x lower relMSE"
+    assert b1 >= 1.5 * r16f, f"16th frame only {b1 / r16f:.2f}x lower relMSE"
+    assert b16 >= 1.2 * r16, f"after 16 accumulated frames only {b16 / r16:.2f}x lower relMSE"
     # render passes: Combined = GI_Direct + Emit on surfaces; debug views W and M
     last = still[-1]
     for k in ("GI_Direct", "Emit", "GI_ReservoirW", "GI_ReservoirM"):

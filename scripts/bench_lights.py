@@ -30,6 +30,18 @@ each row has it without the 0.1 % worst pixels (``*_relmse_trim``): on this scen
 metal ball's sub-pixel highlights of the 5 cm lights can put most of an image's relMSE in
 one or two pixels.
 
+``--techniques PT,RESTIR_DI`` measures only those techniques: ms/frame and relMSE at
+``--samples`` frames against Cycles at ``--ref-spp`` (PT: full light transport, the others:
+direct light), on the scene with ``--kinds mix`` (points, 5 cm spheres and 25 cm area
+lights facing down in turn) and ``--world forest`` (a bundled HDRI, dimmed); ``--ref-cache``
+keeps the references for the other checkout's run. The light-tree numbers in
+docs/results/light_tree.md:
+
+    .venv/bin/python scripts/bench_lights.py --repo /tmp/gi_before --label before \
+        --techniques PT,RESTIR_DI --kinds mix --world forest --counts 10,100,1000,10000 \
+        --res 64 --ref-spp 128 --ref-cache /tmp/refs --name light_tree
+    .venv/bin/python scripts/bench_lights.py --label after (same options)
+
 Writes ``<out>/many_lights_<label>.json``; the ``after`` run also writes
 ``<out>/many_lights.md`` and ``many_lights.json`` with the before numbers side by side when
 ``many_lights_before.json`` exists.
@@ -58,7 +70,7 @@ def import_addon(repo: Path):
     return importlib.import_module("gi_preview")
 
 
-def build_scene(n: int, res: int):
+def build_scene(n: int, res: int, kinds: str = "point", world: str = "dark"):
     import bpy
     import numpy as np
 
@@ -118,11 +130,16 @@ def build_scene(n: int, res: int):
         x = -7.5 + 15.0 * (gx + 0.2 + 0.6 * rng.random()) / g
         y = -7.5 + 15.0 * (gy + 0.2 + 0.6 * rng.random()) / g
         z = 0.25 + 0.95 * rng.random()
-        ld = bpy.data.lights.new(f"bl_point_{i}", "POINT")
+        hue = float(rng.random())
+        kind = "sphere" if kinds == "point" else ("point", "sphere", "area")[i % 3]
+        ld = bpy.data.lights.new(f"bl_{kind}_{i}", "AREA" if kind == "area" else "POINT")
         ld.energy = 768.0 / n
-        ld.color = colorsys.hsv_to_rgb(float(rng.random()), 0.75, 1.0)
-        ld.shadow_soft_size = 0.05
-        ob = bpy.data.objects.new(f"bl_point_{i}", ld)
+        ld.color = colorsys.hsv_to_rgb(hue, 0.75, 1.0)
+        if kind == "area":
+            ld.size = 0.25  # a square facing down
+        else:
+            ld.shadow_soft_size = 0.05 if kind == "sphere" else 0.0
+        ob = bpy.data.objects.new(f"bl_{kind}_{i}", ld)
         ob.location = (x, y, z)
         sc.collection.objects.link(ob)
     cd = bpy.data.cameras.new("bl_cam")
@@ -139,6 +156,12 @@ def build_scene(n: int, res: int):
     bg = w.node_tree.nodes.get("Background")
     bg.inputs["Color"].default_value = (0.02, 0.02, 0.03, 1.0)
     bg.inputs["Strength"].default_value = 1.0
+    if world != "dark":  # a bundled HDRI (Blender's studiolights/world/<name>.exr), dimmed
+        env = w.node_tree.nodes.new("ShaderNodeTexEnvironment")
+        path = os.path.join(bpy.utils.system_resource("DATAFILES", path="studiolights/world"), f"{world}.exr")
+        env.image = bpy.data.images.load(path, check_existing=True)
+        w.node_tree.links.new(env.outputs["Color"], bg.inputs["Color"])
+        bg.inputs["Strength"].default_value = 0.05
     sc.world = w
     return sc
 
@@ -178,8 +201,47 @@ def time_technique(session, sd, tech, quality, samples, frame_budget):
     return r.image, float(r.frame_ms), total, frames, r, warm
 
 
+def run_techniques(args, n, bpy, np, reference, export_scene, session) -> dict:
+    """``--techniques``: each technique's ms/frame and relMSE at ``--samples`` frames against
+    a Cycles reference at ``--ref-spp`` (PT: full light transport; DIRECT and RESTIR_DI:
+    direct light), on a fresh scene."""
+    sc = build_scene(n, args.res, args.kinds, args.world)
+    try:
+        with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
+            dg = bpy.context.evaluated_depsgraph_get()
+        dg.update()
+        sd = export_scene(dg)
+        refs = {}
+        row = {"lights": n, "ref_spp": args.ref_spp}
+        for tech in args.techniques.split(","):
+            kind = "full" if tech == "PT" else "direct"
+            if kind not in refs:
+                cpath = (Path(args.ref_cache) / f"{args.kinds}_{args.world}_{n}_{args.res}_{args.ref_spp}_{kind}.npy"
+                         if args.ref_cache else None)
+                if cpath is not None and cpath.exists():  # the same scene in a before/after pair
+                    refs[kind] = np.load(cpath)
+                else:
+                    refs[kind], row[f"cycles_{kind}_ref_ms"] = reference.render_cycles(sc, args.ref_spp, kind)
+                    if cpath is not None:
+                        cpath.parent.mkdir(parents=True, exist_ok=True)
+                        np.save(cpath, refs[kind])
+            ref = refs[kind]
+            q = 0 if tech == "PT" else args.quality
+            img, fms, tot, frames, r, warm = time_technique(session, sd, tech, q, args.samples, args.frame_budget)
+            t = tech.lower()
+            row.update({f"{t}_frame_ms": fms, f"{t}_frames": frames, f"{t}_relmse": relmse(img, ref),
+                        f"{t}_relmse_trim": relmse_trimmed(img, ref), f"{t}_nonfinite": int((~np.isfinite(img)).sum())})
+            print(f"[{args.label}] N={n}: {tech} {fms:.0f} ms/frame x{frames} relMSE {row[t + '_relmse']:.4f} "
+                  f"(trimmed {row[t + '_relmse_trim']:.4f})", flush=True)
+        return row
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
 def run_count(args, n, bpy, np, reference, export_scene, session) -> dict:
     """Everything measured for one light count (Cycles, DIRECT, PT) on a fresh scene."""
+    if args.techniques:
+        return run_techniques(args, n, bpy, np, reference, export_scene, session)
     sc = build_scene(n, args.res)
     try:
         with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
@@ -232,12 +294,22 @@ def main(argv=None):
     ap.add_argument("--out", default=str(REPO / "docs" / "results"))
     ap.add_argument("--set", action="append", default=[], metavar="PASS.PARAM=VALUE",
                     help="override a pass parameter for every render (e.g. shadows.max_shadow_maps=16); repeatable")
+    ap.add_argument("--techniques", default="",
+                    help="e.g. PT,RESTIR_DI: only these, each with relMSE at --samples frames against Cycles "
+                         "(PT: full, others: direct) at --ref-spp; writes <out>/<--name>_<label>.json/.md")
+    ap.add_argument("--kinds", default="point", choices=("point", "mix"),
+                    help="point: 5 cm sphere lights; mix: points, 5 cm spheres and 25 cm area lights in turn")
+    ap.add_argument("--world", default="dark", help="dark, or a bundled HDRI name (forest, city, ...)")
+    ap.add_argument("--ref-cache", default=None, help="folder keeping the Cycles references between runs")
+    ap.add_argument("--name", default="many_lights", help="result file prefix (with --techniques)")
     ap.add_argument("--lock", default=None,
                     help="a file to flock around each light count's renders (shared machines: others run between)")
     args = ap.parse_args(argv)
 
     import_addon(Path(args.repo).resolve())
     import bpy
+    if hasattr(bpy.utils, "expose_bundled_modules"):
+        bpy.utils.expose_bundled_modules()  # OpenImageIO (world maps are baked through EXR)
     import numpy as np
     from gi_preview.blender import reference
     from gi_preview.blender.export import export_scene
@@ -281,8 +353,16 @@ def main(argv=None):
             "date": time.strftime("%Y-%m-%d %H:%M"), "rows": rows}
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / f"many_lights_{args.label}.json").write_text(json.dumps(info, indent=1))
-    if args.label == "after":
+    if args.techniques:
+        info.update({"techniques": args.techniques, "kinds": args.kinds, "world": args.world,
+                     "ref_spp": args.ref_spp})
+        (out / f"{args.name}_{args.label}.json").write_text(json.dumps(info, indent=1))
+        before_p = out / f"{args.name}_before.json"
+        if args.label != "before" and before_p.exists():
+            (out / f"{args.name}.md").write_text(report_techniques(info, json.loads(before_p.read_text())))
+    elif True:
+        (out / f"many_lights_{args.label}.json").write_text(json.dumps(info, indent=1))
+    if args.label == "after" and not args.techniques:
         before_p = out / "many_lights_before.json"
         before = json.loads(before_p.read_text()) if before_p.exists() else None
         (out / "many_lights.json").write_text(json.dumps({"after": info, "before": before}, indent=1))
@@ -302,6 +382,36 @@ def parse_overrides(items) -> dict:
             raise SystemExit(f"bench_lights: --set wants PASS.PARAM=VALUE, got {it!r}")
         out.setdefault(pass_name, {})[param] = float(val)
     return out
+
+
+def report_techniques(after: dict, before: dict) -> str:
+    """Before/after table of a --techniques run: ms/frame, the ratio to the 100-light row,
+    relMSE at equal frames."""
+    techs = after["techniques"].split(",")
+    b = {r["lights"]: r for r in before.get("rows", [])}
+    L = [f"# {', '.join(techs)} against the number of lights", "",
+         f"Generated by `scripts/bench_lights.py --techniques {after['techniques']} --kinds {after['kinds']} "
+         f"--world {after['world']}`: {after['res']} x {after['res']} px, {after['samples']} frames (1 spp each; "
+         f"DIRECT/RESTIR_DI quality {after['quality']}), relMSE against Cycles at {after['ref_spp']} spp (PT: full "
+         f"light transport, others: direct light), {after['machine']}, GL `{after['gl'].get('GL_RENDERER', '?')}`. "
+         f"`before` = {before.get('repo', '?')} measured by the same script. ms/frame = median over the frames "
+         "after a warm-up render; shared machine: expect +-20 % between runs.", ""]
+    head = "| lights |" + "".join(f" {t} before ms | {t} ms | {t} before relMSE | {t} relMSE |" for t in techs)
+    L += [head, "|---:|" + "---:|" * (4 * len(techs))]
+    for r in after["rows"]:
+        o = b.get(r["lights"], {})
+        cells = []
+        for t in (x.lower() for x in techs):
+            cells += [f"{o[t + '_frame_ms']:.0f}" if t + "_frame_ms" in o else "-", f"{r[t + '_frame_ms']:.0f}",
+                      f"{o[t + '_relmse']:.4f}" if t + "_relmse" in o else "-", f"{r[t + '_relmse']:.4f}"]
+        L.append(f"| {r['lights']} | " + " | ".join(cells) + " |")
+    rows = {r["lights"]: r for r in after["rows"]}
+    lo, hi = min(rows), max(rows)
+    for t in (x.lower() for x in techs):
+        ra = rows[hi][t + "_frame_ms"] / rows[lo][t + "_frame_ms"]
+        rb = (b[hi][t + "_frame_ms"] / b[lo][t + "_frame_ms"]) if hi in b and lo in b else float("nan")
+        L.append(f"\n{t.upper()}: {hi} vs {lo} lights: x{ra:.2f} ms/frame (before x{rb:.2f}).")
+    return "\n".join(L) + "\n"
 
 
 def report(after: dict, before: dict | None) -> str:

@@ -2,7 +2,8 @@
 
 ``SceneRT`` (one per ``GPUScene``, from ``gpu_scene.rt()``) owns the two-level BVH on the GPU
 (``RtBuffers``: the SSBOs of ``shaders/lib/bvh.glsl``) and the light-selection table of
-``shaders/lib/scene_rt.glsl``; with the GPUScene's material, light and emitter buffers and
+``shaders/lib/scene_rt.glsl`` (power CDF, mesh lights, world map tables, and the light tree
+and light BVH of ``light_tree.py`` / ``shaders/lib/light_select.glsl``); with the GPUScene's material, light and emitter buffers and
 texture array it is everything a compute pass needs to call ``scene_trace``,
 ``scene_occluded``, ``select_light``/``light_pdf``, ``shade_direct`` and
 ``bsdf_hit_light_mis``. Two graphs of a session share one SceneRT, hence one BVH. It rebuilds
@@ -25,6 +26,7 @@ import time
 import numpy as np
 
 from .bvh import SceneBVH
+from .light_tree import light_select_table
 from .scene_data import LightType, SceneError
 from .world_map import world_map_of
 
@@ -200,7 +202,8 @@ def world_selection(scene, light_array: np.ndarray, count: int) -> float:
 
 def light_table(scene, light_array: np.ndarray, count: int, emitter_groups) -> np.ndarray:
     """scene_rt.glsl's RtLightSelect buffer: [cdf (n), prob (n), mesh light per instance,
-    the world map's sampling tables (map worlds)]."""
+    the world map's sampling tables (map worlds), the light tree and light BVH
+    (light_tree.light_select_table, at light_tree_offset)]."""
     sel = light_selection(scene, light_array, count)
     inst = np.full(max(len(scene.instances), 1), -1.0, np.float32)
     first_mesh_light = int(count) - len(emitter_groups)
@@ -212,7 +215,21 @@ def light_table(scene, light_array: np.ndarray, count: int, emitter_groups) -> n
     wm = world_map_of(scene.world)
     if wm is not None:
         parts.append(wm.table())
+    if int(count) > 0:
+        w, _ = _selection_weights(scene, light_array, count)
+        if w.sum() <= 0:
+            w[:] = 1.0
+        off = sum(len(x) for x in parts)
+        parts.append(light_select_table(w, light_array, count, emitter_groups, off))
     return np.concatenate(parts).astype(np.float32)
+
+
+def light_tree_offset(scene, count: int) -> int:
+    """Where the light tree's header starts in light_table's buffer (-1: no lights)."""
+    if int(count) <= 0:
+        return -1
+    wm = world_map_of(scene.world)
+    return world_table_offset(scene, count) + (wm.grid[1] * (1 + wm.grid[0]) if wm is not None else 0)
 
 
 def world_table_offset(scene, count: int) -> int:
@@ -249,6 +266,7 @@ class SceneRT:
         self.buffers: RtBuffers | None = None
         self._select_buf = None
         self.world_select = 0.0
+        self.light_tree_offset = -1
         self._geo_key = self._inst_key = self._light_key = None
         self._version = None
         self._scene = None
@@ -294,6 +312,7 @@ class SceneRT:
         else:
             self._select_buf.write(data)
         self.world_select = world_selection(scene, gs.light_array, gs.light_count)
+        self.light_tree_offset = light_tree_offset(scene, gs.light_count)
         self._version, self._scene = gs.version, scene
         return self
 
@@ -326,6 +345,7 @@ class SceneRT:
         set_uniform(prog, "u_world_select", self.world_select)
         set_uniform(prog, "u_world_table", world_table_offset(scene, gs.light_count))
         set_uniform(prog, "u_world_grid", tuple(int(x) for x in (wm.grid if wm is not None else (1, 1))))
+        set_uniform(prog, "u_light_tree", self.light_tree_offset)
         # u_alpha_test (GPUScene.bind): rays test alpha only when some material has holes
 
     @property

@@ -11,10 +11,12 @@
 //     SurfaceHit s;  bool hit = scene_trace(o, d, tmin, tmax, s);
 //     bool blocked = scene_occluded(o, d, tmin, tmax);
 //     Material m = scene_material(id);   vec3 base = scene_base_color(m, uv);
-//   Light selection (by power; suns weighted by the scene's cross-section):
-//     int i = select_light(u, prob);     float prob = light_pdf(i);
+//   Light selection (lib/light_select.glsl): by a light tree at shading point p (normal n, or
+//   vec3(0): none), suns by power outside it; by power alone without a shading point:
+//     int i = select_light(u, p, n, prob);   float prob = light_pdf(i, p, n);
+//     int i = select_light(u, prob);         float prob = light_pdf(i);
 //     int li = mesh_light_of(instance);  // the mesh light built from an emissive instance, -1 none
-//   Direct light at any surface point (next-event estimation: one light by power, or the world
+//   Direct light at any surface point (next-event estimation: one light by the tree, or the world
 //   map by its luminance, one point on it, one shadow ray through the BVH):
 //     vec3 Ld = shade_direct(s, V, rng);              // alone: unbiased, light sampling only
 //     vec3 Ld = shade_direct_mis(s, V, rng);          // weighted for MIS with a BSDF ray whose
@@ -44,9 +46,12 @@
 #ifndef RT_BINDING_LIGHT_SELECT
 #define RT_BINDING_LIGHT_SELECT 15
 #endif
-// [0, n): cdf of selecting lights 0..i; [n, 2n): probability of light i;
-// [2n, 2n + instances): the mesh light of each instance (-1: not emissive), as floats
+// [0, n): cdf of selecting lights 0..i by power; [n, 2n): probability of light i;
+// [2n, 2n + instances): the mesh light of each instance (-1: not emissive), as floats; the
+// world map's tables (u_world_table); the light tree and light BVH (u_light_tree,
+// lib/light_select.glsl)
 layout(std430, binding = RT_BINDING_LIGHT_SELECT) readonly buffer RtLightSelect { float rt_light_select[]; };
+#include "lib/light_select.glsl"
 
 uniform sampler2DArray u_textures;
 uniform int u_material_count;
@@ -139,25 +144,14 @@ void surface_frame(SurfaceHit s, vec3 V, out vec3 N, out vec3 Ng, out vec3 p) {
 }
 
 // ---------------------------------------------------------------- light selection
-int select_light(float u, out float prob) {
-    int n = u_light_count;
-    int lo = 0, hi = n - 1;
-    while (lo < hi) {
-        int mid = (lo + hi) / 2;
-        if (rt_light_select[mid] <= u) lo = mid + 1; else hi = mid;
-    }
-    prob = rt_light_select[n + lo];
-    return lo;
-}
-
-float light_pdf(int i) { return rt_light_select[u_light_count + i]; }
-
+// select_light / light_pdf: lib/light_select.glsl (included above)
 int mesh_light_of(int instance) {
     return instance < 0 ? -1 : int(floor(rt_light_select[2 * u_light_count + instance] + 0.5));
 }
 
-// Probability that next-event estimation picks light i (the world takes u_world_select).
-float nee_light_prob(int i) { return light_pdf(i) * (1.0 - u_world_select); }
+// Probability that next-event estimation from p picks light i (the world takes
+// u_world_select): the light tree's, without the receiver's normal (see light_select.glsl).
+float nee_light_prob(int i, vec3 p) { return light_pdf(i, p, vec3(0.0)) * (1.0 - u_world_select); }
 
 // First index in [first, first + n) whose cdf entry exceeds u (n - 1 if none).
 int world_cdf_search(int first, int n, float u) {
@@ -206,7 +200,7 @@ vec3 world_sample(vec2 u, out float pdf) {
 }
 
 // ---------------------------------------------------------------- next-event estimation
-// One light by power, one point on it (sample_light, from the offset origin p so the shadow
+// One light by the light tree (at p, no normal), one point on it (sample_light, from the offset origin p so the shadow
 // ray ends exactly at the sample), a shadow ray for lights that cast shadows. Returns
 // f * Li * w / pdf for the surface (bs, N, Ng) seen from V; w = power heuristic against
 // the BSDF's pdf when mis (delta lights: 1), else 1. Consumes one rng_next4 when there are lights.
@@ -229,7 +223,7 @@ vec3 shade_direct_split(Surface bs, vec3 p, vec3 N, vec3 Ng, vec3 V, inout Rng r
         ls.delta = false;
         ls.Li = world_radiance(ls.dir);
     } else {
-        int li = select_light((ul.x - u_world_select) / (1.0 - u_world_select), sel);
+        int li = select_light((ul.x - u_world_select) / (1.0 - u_world_select), p, vec3(0.0), sel);
         sel *= 1.0 - u_world_select;
         Light L = lights[li];
         ls = sample_light(L, p, ul.yz, ul.w);
@@ -274,12 +268,24 @@ vec3 shade_direct_mis(SurfaceHit s, vec3 V, inout Rng rng) {
 vec3 bsdf_hit_light_mis(vec3 o, vec3 d, float tmin, bool hit, SurfaceHit s, float bsdf_pdf, bool lights_visible) {
     vec3 sum = vec3(0.0);
     float t_surf = hit ? s.t : T_INF;
-    for (int i = 0; i < u_light_count && lights_visible; ++i) {
-        vec3 Le;
-        float lpdf;
-        if (light_ray_hit(lights[i], o, d, tmin, t_surf, Le, lpdf)) {
-            float w = bsdf_pdf > 0.0 ? power_heuristic(bsdf_pdf, nee_light_prob(i) * lpdf) : 1.0;
-            sum += Le * w;
+    // area and sphere lights crossed: through the light BVH
+#define RT_VISIT_CROSSED(i) {                                                                   \
+        vec3 Le_;                                                                               \
+        float lpdf_;                                                                            \
+        if (light_ray_hit(lights[i], o, d, tmin, t_surf, Le_, lpdf_))                           \
+            sum += Le_ * (bsdf_pdf > 0.0 ? power_heuristic(bsdf_pdf, nee_light_prob(i, o) * lpdf_) : 1.0); \
+    }
+    if (lights_visible) LIGHT_BVH_TRAVERSE(o, d, tmin, t_surf, RT_VISIT_CROSSED)
+#undef RT_VISIT_CROSSED
+    if (!hit && lights_visible && u_light_tree >= 0) {  // sun disks: the suns' list
+        int suns = int(rt_light_select[u_light_tree + 4]);
+        int ns = int(rt_light_select[u_light_tree + 5]);
+        for (int k = 0; k < ns; ++k) {
+            int i = int(rt_light_select[suns + k] + 0.5);
+            vec3 Le;
+            float lpdf;
+            if (light_ray_hit(lights[i], o, d, tmin, t_surf, Le, lpdf))
+                sum += Le * (bsdf_pdf > 0.0 ? power_heuristic(bsdf_pdf, nee_light_prob(i, o) * lpdf) : 1.0);
         }
     }
     if (!hit) {
@@ -302,7 +308,7 @@ vec3 bsdf_hit_light_mis(vec3 o, vec3 d, float tmin, bool hit, SurfaceHit s, floa
             vec3 Em = materials[s.material].emission.rgb;  // what EmitterSet weighted the triangle by
             float tri_power = area * (Em.r + Em.g + Em.b) / 3.0 * PI;
             float tri_prob = tri_power / max(L.color.w, 1e-20);
-            float lpdf = nee_light_prob(li) * tri_prob * area_to_solid_angle_pdf(o, s.position, s.geo_normal, area);
+            float lpdf = nee_light_prob(li, o) * tri_prob * area_to_solid_angle_pdf(o, s.position, s.geo_normal, area);
             w = power_heuristic(bsdf_pdf, lpdf);
         }
         sum += E * w;
