@@ -14,8 +14,11 @@
   (or one of its channels), or a bake of the nodes over the UV square (see
   docs/ARCHITECTURE.md, "Materials and textures"); a Normal Map node gives a tangent-space
   map and the mesh's MikkTSpace tangents. A node that depends on more than the UV map falls
-  back for its input only (``exact=False``, ``support``, a warning naming it); another
-  surface shader falls back to the material's viewport colour.
+  back for its input only (``exact=False``, ``support``, a warning naming it). Mix and Add
+  Shaders, Glass, Refraction, Translucent, Transparent and Glossy BSDFs and Principled
+  transmission make a lobe list (``_LobeMaterial``: exact lobes for the path tracer, a
+  blended record for the raster passes); another surface shader falls back to the
+  material's viewport colour.
 * Lights in Cycles' units (checked against Cycles renders, see blender_tests/test_export.py):
   point/spot intensity ``P*color/(4 pi)`` W/sr, sun irradiance ``E*color`` W/m^2, area
   radiance ``P*color/(pi*A)`` (``normalize``) or ``P*color/pi``; all times ``2**exposure``
