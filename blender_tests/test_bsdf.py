@@ -164,3 +164,66 @@ def test_bsdf_room_every_technique(room):
             print(f"{k}: known to be worse than DIRECT here: {why}")
     worse = {k: v for k, v in errs.items() if v > 1.05 * errs["DIRECT"] and k not in KNOWN_WORSE}
     assert not worse, f"worse than DIRECT ({errs['DIRECT']:.4f}) by more than 5 %: {worse}"
+
+
+def test_lobe_materials_export():
+    """Refraction BSDF; an Emission mixed with a Diffuse (the mix's emission, the Diffuse's
+    weight); a coloured Transparent BSDF (its grey level, reported); a procedural factor (the
+    material falls back to its viewport colour, naming the node)."""
+    from gi_preview.blender import demo_scenes as D
+    from gi_preview.blender.export import export_scene
+    from gi_preview.blender.reference import evaluated_depsgraph
+    from scenes_real import _bsdf, _shader_material
+
+    sc = bpy.data.scenes.new("lobes_test")
+    try:
+        b = D._Builder(sc, "lobes_test")
+
+        def emit_mix(N, L):
+            m = N.new("ShaderNodeMixShader")
+            m.inputs[0].default_value = 0.25
+            L.new(_bsdf(N, "ShaderNodeEmission", Strength=2.0).outputs[0], m.inputs[1])
+            L.new(_bsdf(N, "ShaderNodeBsdfDiffuse", Color=(0.5, 0.5, 0.5)).outputs[0], m.inputs[2])
+            return m.outputs[0]
+
+        def tinted(N, L):
+            m = N.new("ShaderNodeMixShader")
+            m.inputs[0].default_value = 0.5
+            L.new(_bsdf(N, "ShaderNodeBsdfTransparent", Color=(1.0, 0.5, 0.5)).outputs[0], m.inputs[1])
+            L.new(_bsdf(N, "ShaderNodeBsdfDiffuse").outputs[0], m.inputs[2])
+            return m.outputs[0]
+
+        def checker(N, L):
+            m = N.new("ShaderNodeMixShader")
+            L.new(N.new("ShaderNodeTexChecker").outputs["Fac"], m.inputs[0])
+            L.new(_bsdf(N, "ShaderNodeBsdfDiffuse").outputs[0], m.inputs[1])
+            L.new(_bsdf(N, "ShaderNodeBsdfGlass").outputs[0], m.inputs[2])
+            return m.outputs[0]
+
+        mats = {
+            "refraction": _shader_material("lobes_test.refraction", lambda N, L: _bsdf(
+                N, "ShaderNodeBsdfRefraction", Roughness=0.1, IOR=1.33).outputs[0]),
+            "emit_mix": _shader_material("lobes_test.emit_mix", emit_mix),
+            "tinted": _shader_material("lobes_test.tinted", tinted),
+            "checker": _shader_material("lobes_test.checker", checker),
+        }
+        for i, (k, m) in enumerate(mats.items()):
+            b.quad(k, [(i, 0, 0), (i + 0.5, 0, 0), (i + 0.5, 0, 0.5), (i, 0, 0.5)], m)
+        b.camera((0, -3, 1), (0, 0, 0))
+        sd = export_scene(evaluated_depsgraph(sc))
+        by = {m.name.split(".", 1)[1]: m for m in sd.materials}
+        r = by["refraction"]
+        assert [(x.bsdf, round(x.roughness, 3), round(x.ior, 3)) for x in r.lobes] == [("refraction", 0.1, 1.33)]
+        assert r.transmits
+        e = by["emit_mix"]
+        np.testing.assert_allclose(e.emission, [1.5, 1.5, 1.5], rtol=1e-6)
+        assert [(x.bsdf, x.weight) for x in e.lobes] == [("principled", 0.25)]
+        t = by["tinted"]
+        assert t.alpha == pytest.approx(1.0 - 0.5 * (0.2126 + 0.5 * (0.7152 + 0.0722)), abs=1e-4)  # luminance
+        assert "grey level" in t.support
+        c = by["checker"]
+        assert c.support.startswith("unsupported:") and "ShaderNodeTexChecker" in c.support and not c.lobes
+    finally:
+        for ob in list(sc.objects):
+            bpy.data.objects.remove(ob)
+        bpy.data.scenes.remove(sc)
