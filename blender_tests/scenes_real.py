@@ -202,3 +202,136 @@ def gltf_texture_set(folder, resolution: int = 64, name: str = "gltf_texture_set
     bg.inputs["Strength"].default_value = 1.0
     sc.world = world
     return sc
+
+
+# ------------------------------------------------------------------ BSDFs beyond the Principled
+def _shader_material(name, build):
+    """A material whose node tree ``build(nodes, links) -> output socket`` makes."""
+    mat = bpy.data.materials.new(name)
+    nt = mat.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    nt.links.new(build(nt.nodes, nt.links), out.inputs["Surface"])
+    return mat
+
+
+def _bsdf(nodes, kind, **inputs):
+    n = nodes.new(kind)
+    for k, v in inputs.items():
+        if k == "distribution":
+            n.distribution = v
+            continue
+        n.inputs[k].default_value = (*v, 1.0) if isinstance(v, tuple) and len(v) == 3 else v
+    return n
+
+
+def bsdf_room(folder, resolution: int = 48, name: str = "bsdf_room"):
+    """A small room (open behind the camera, a uniform grey world beyond) lit by an area
+    light near the ceiling, holding the everyday BSDFs: a smooth glass sphere (Principled,
+    Transmission Weight 1, IOR 1.45) and a rough one (Glass BSDF, roughness 0.3) in front of a
+    checkered floor, a Mix Shader sphere (Diffuse + Glossy, factor 0.4), a sphere mixing
+    Diffuse and a metal Principled by a striped texture, an Add Shader box (Diffuse + Glossy),
+    a leaf card cut out by a Transparent BSDF mixed in by the leaf's alpha, and a
+    Translucent panel lit from behind. Images are saved as PNG in ``folder``."""
+    from gi_preview.blender import demo_scenes as D
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    sc = bpy.data.scenes.new(name)
+    b = D._Builder(sc, name)
+    n = 64
+    u, v = _grid(n)
+    check = np.ones((n, n, 4))
+    c = ((np.floor(u * 8) + np.floor(v * 8)) % 2)[..., None]
+    check[..., :3] = c * np.array([0.75, 0.72, 0.65]) + (1 - c) * np.array([0.12, 0.14, 0.2])
+    stripes = np.ones((n, n, 4))
+    stripes[..., :3] = (np.floor(u * 6) % 2 == 1)[..., None].astype(float)
+    ims = {k: _save(f"{name}_{k}", px, nc, folder) for k, (px, nc) in
+           {"check": (check, False), "stripes": (stripes, True), "leaf": (images()["leaf"][0], False)}.items()}
+
+    floor_m = _shader_material(b.n("floor"), lambda N, L: _floor(N, L, ims["check"]))
+    white = D.make_principled(b.n("white"), (0.7, 0.7, 0.7), 0.8)
+    red = D.make_principled(b.n("red"), (0.6, 0.12, 0.08), 1.0, specular=0.0)
+    floor = b.room("room", (-2, -2.8, 0), (2, 2, 2.5), {"floor": floor_m, "ceiling": white, "+y": white,
+                                                         "-x": red, "+x": white}, skip=("-y",))["floor"]
+    me = floor.data  # floor UVs over [0, 1] (the builder's planar UVs are in metres)
+    uv = np.empty(2 * len(me.loops), np.float32)
+    me.uv_layers[0].data.foreach_get("uv", uv)
+    uv = uv.reshape(-1, 2)
+    uv = (uv - [-2.0, -2.8]) / [4.0, 4.8]
+    me.uv_layers[0].data.foreach_set("uv", uv.ravel())
+
+    def principled_glass(N, L):
+        p = _bsdf(N, "ShaderNodeBsdfPrincipled", **{"Base Color": (1.0, 1.0, 1.0), "Roughness": 0.0,
+                                                     "IOR": 1.45, "Transmission Weight": 1.0})
+        return p.outputs[0]
+
+    glass_s = _shader_material(b.n("glass_smooth"), principled_glass)
+    glass_r = _shader_material(b.n("glass_rough"), lambda N, L: _bsdf(
+        N, "ShaderNodeBsdfGlass", Color=(0.9, 0.95, 1.0), Roughness=0.3, IOR=1.5).outputs[0])
+
+    def mix_const(N, L):
+        m = N.new("ShaderNodeMixShader")
+        m.inputs[0].default_value = 0.4
+        L.new(_bsdf(N, "ShaderNodeBsdfDiffuse", Color=(0.75, 0.25, 0.1)).outputs[0], m.inputs[1])
+        L.new(_bsdf(N, "ShaderNodeBsdfGlossy", Color=(0.9, 0.9, 0.9), Roughness=0.2).outputs[0], m.inputs[2])
+        return m.outputs[0]
+
+    def mix_tex(N, L):
+        m = N.new("ShaderNodeMixShader")
+        t = N.new("ShaderNodeTexImage")
+        t.image = ims["stripes"]
+        L.new(t.outputs["Color"], m.inputs[0])
+        L.new(_bsdf(N, "ShaderNodeBsdfDiffuse", Color=(0.15, 0.3, 0.7)).outputs[0], m.inputs[1])
+        L.new(_bsdf(N, "ShaderNodeBsdfPrincipled", **{"Base Color": (0.95, 0.75, 0.35), "Metallic": 1.0,
+                                                       "Roughness": 0.3}).outputs[0], m.inputs[2])
+        return m.outputs[0]
+
+    def add(N, L):
+        a = N.new("ShaderNodeAddShader")
+        L.new(_bsdf(N, "ShaderNodeBsdfDiffuse", Color=(0.2, 0.45, 0.15)).outputs[0], a.inputs[0])
+        L.new(_bsdf(N, "ShaderNodeBsdfGlossy", Color=(0.3, 0.3, 0.3), Roughness=0.3).outputs[0], a.inputs[1])
+        return a.outputs[0]
+
+    def leaf(N, L):
+        m = N.new("ShaderNodeMixShader")
+        t = N.new("ShaderNodeTexImage")
+        t.image = ims["leaf"]
+        L.new(t.outputs["Alpha"], m.inputs[0])
+        L.new(_bsdf(N, "ShaderNodeBsdfTransparent", Color=(1.0, 1.0, 1.0)).outputs[0], m.inputs[1])
+        d = _bsdf(N, "ShaderNodeBsdfDiffuse")
+        L.new(t.outputs["Color"], d.inputs["Color"])
+        L.new(d.outputs[0], m.inputs[2])
+        return m.outputs[0]
+
+    translucent = _shader_material(b.n("translucent"), lambda N, L: _bsdf(
+        N, "ShaderNodeBsdfTranslucent", Color=(0.9, 0.75, 0.5)).outputs[0])
+    b.sphere("glass_smooth", 0.42, glass_s, location=(-0.75, 0.1, 0.42), segments=48, rings=24)
+    b.sphere("glass_rough", 0.38, glass_r, location=(0.3, 0.55, 0.38), segments=48, rings=24)
+    b.sphere("mix", 0.33, _shader_material(b.n("mix"), mix_const), location=(1.15, 0.0, 0.33))
+    b.sphere("mix_tex", 0.25, _shader_material(b.n("mix_tex"), mix_tex), location=(0.35, -0.55, 0.25))
+    b.box("add", (0.4, 0.4, 0.4), _shader_material(b.n("add"), add), location=(-0.2, -0.75, 0.2),
+          rotation=(0, 0, 0.5))
+    card = b.quad("leaf", [(-0.5, 0, 0), (0.5, 0, 0), (0.5, 0, 1.1), (-0.5, 0, 1.1)],
+                  _shader_material(b.n("leaf"), leaf), location=(-1.35, 1.2, 0.05), rotation=(0, 0, 0.3))
+    me = card.data
+    me.uv_layers[0].data.foreach_set("uv", np.array([(0, 0), (1, 0), (1, 1), (0, 1)], np.float32).ravel())
+    b.quad("panel", [(-0.45, 0, 0), (0.45, 0, 0), (0.45, 0, 1.2), (-0.45, 0, 1.2)], translucent,
+           location=(1.3, 1.2, 0.0), rotation=(0, 0, -0.4))
+    b.light("key", "AREA", (0.6, 1.6, 2.3), rotation=(math.radians(25), 0, math.radians(180)),
+            energy=120.0, size=1.0)
+    b.camera((0.0, -2.75, 1.2), (0.05, 0.3, 0.45), lens=24)
+    sc.world = D.make_world(b.n("world"), (0.25, 0.25, 0.25), 1.0)
+    r = sc.render
+    r.resolution_x = r.resolution_y = int(resolution)
+    r.resolution_percentage = 100
+    return sc
+
+
+def _floor(nodes, links, image):
+    p = nodes.new("ShaderNodeBsdfPrincipled")
+    p.inputs["Roughness"].default_value = 0.5
+    t = nodes.new("ShaderNodeTexImage")
+    t.image = image
+    links.new(t.outputs["Color"], p.inputs["Base Color"])
+    return p.outputs[0]

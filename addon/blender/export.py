@@ -14,8 +14,11 @@
   (or one of its channels), or a bake of the nodes over the UV square (see
   docs/ARCHITECTURE.md, "Materials and textures"); a Normal Map node gives a tangent-space
   map and the mesh's MikkTSpace tangents. A node that depends on more than the UV map falls
-  back for its input only (``exact=False``, ``support``, a warning naming it); another
-  surface shader falls back to the material's viewport colour.
+  back for its input only (``exact=False``, ``support``, a warning naming it). Mix and Add
+  Shaders, Glass, Refraction, Translucent, Transparent and Glossy BSDFs and Principled
+  transmission make a lobe list (``_LobeMaterial``: exact lobes for the path tracer, a
+  blended record for the raster passes); another surface shader falls back to the
+  material's viewport colour.
 * Lights in Cycles' units (checked against Cycles renders, see blender_tests/test_export.py):
   point/spot intensity ``P*color/(4 pi)`` W/sr, sun irradiance ``E*color`` W/m^2, area
   radiance ``P*color/(pi*A)`` (``normalize``) or ``P*color/pi``; all times ``2**exposure``
@@ -121,6 +124,7 @@ class _MaterialReader:
         self.approx: list[str] = []
         self.tangent_uv: str | None = None
         self.uv_names: set = set()
+        self.exprs: dict = {}  # Material attribute -> the expression read for it (colour inputs)
 
     # ---------------------------------------------------------- expressions
     def expr(self, sock):
@@ -186,6 +190,7 @@ class _MaterialReader:
         e = self.expr(sock)
         if e is None:
             e = NE.Const(tuple(float(x) for x in sock.default_value[:3]))
+        self.exprs[key] = e
         kind, val, *rest = self.resolve(e, 3, sock.name)
         if kind == "const":
             setattr(m, key, _rgb(val))
@@ -305,9 +310,13 @@ class _MaterialReader:
         self.emission(m, inp["Emission Color"], inp["Emission Strength"])
         self.color(m, "base_color", inp["Base Color"])
         self.normal(m, inp["Normal"])
+        tw = inp.get("Transmission Weight")
+        if tw is not None:
+            self.scalar(m, "transmission", tw)
+            m.transmission = min(max(m.transmission, 0.0), 1.0)
         # Lobes GI Preview does not model: keep the Principled values, flag them.
         ignored = []
-        for name in ("Transmission Weight", "Coat Weight", "Sheen Weight", "Subsurface Weight"):
+        for name in ("Coat Weight", "Sheen Weight", "Subsurface Weight"):
             s = inp.get(name)
             if s is not None and (s.is_linked or float(s.default_value) > 0.0):
                 ignored.append(name)
@@ -331,6 +340,324 @@ class _MaterialReader:
         m._tangent_uv = self.tangent_uv
         m._uv_names = set(self.uv_names)
         return m
+
+
+# ------------------------------------------------------------------------------ lobe lists
+# Surface nodes that make a material a lobe list (Material.lobes) rather than one record.
+_LOBE_GRAPH_NODES = {"ShaderNodeMixShader", "ShaderNodeAddShader", "ShaderNodeBsdfGlass",
+                     "ShaderNodeBsdfRefraction", "ShaderNodeBsdfTranslucent", "ShaderNodeBsdfTransparent",
+                     "ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic"}
+_LOBE_NODES = {"ShaderNodeBsdfPrincipled", "ShaderNodeBsdfDiffuse", "ShaderNodeBsdfGlossy",
+               "ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfMetallic", "ShaderNodeBsdfGlass",
+               "ShaderNodeBsdfRefraction", "ShaderNodeBsdfTranslucent", "ShaderNodeEmission"}
+# What the G-buffer family (DIRECT, screen space, probes, voxels) renders of each lobe kind:
+# the record blended from the lobes' Principled-equivalent parameters (see _LobeMaterial).
+_RASTER_APPROX = {
+    "glass": "glass and refraction as their specular reflection alone (no refraction, no diffuse)",
+    "refraction": "glass and refraction as their specular reflection alone (no refraction, no diffuse)",
+    "translucent": "translucency as diffuse reflection",
+    "glossy": "Glossy as a metal of its colour (Schlick Fresnel)",
+    "transmission": "Principled transmission as its specular reflection, the diffuse scaled by 1 - transmission",
+}
+_MAX_SHADER_DEPTH = 16
+
+
+def _transmits(node) -> bool:
+    s = node.inputs.get("Transmission Weight")
+    return s is not None and (_follow(s) is not None or float(s.default_value) > 0.0)
+
+
+def _cmath(op, a, b, clamp=False):
+    return NE.Op("math", (op, clamp), (a, b, NE.Const((0.0,))))
+
+
+def _mul(a, b):
+    if NE.is_const(a) and float(NE.evaluate(a, [[0.5, 0.5]])[0, 0]) == 1.0:
+        return b
+    if NE.is_const(b) and float(NE.evaluate(b, [[0.5, 0.5]])[0, 0]) == 1.0:
+        return a
+    return _cmath("MULTIPLY", a, b)
+
+
+def _const(e) -> float | None:
+    return float(NE.evaluate(e, [[0.5, 0.5]])[0, 0]) if NE.is_const(e) else None
+
+
+class _LobeMaterial:
+    """A material whose surface is a graph of Mix / Add Shaders over BSDF nodes, or one
+    Glass / Refraction / Translucent / Transparent / Glossy BSDF, or a Principled BSDF with
+    transmission. The graph is flattened into terms (weight expression, node): a Mix Shader
+    multiplies its two inputs' weights by 1 - factor and factor (clamped, any UV-only
+    expression of the node evaluator), an Add Shader passes its weight to both. Then
+
+    * Transparent BSDFs become the material's alpha (1 - their summed weight times their
+      colour's grey level), as Cycles' shadow rays see them, and every other term is
+      divided by that alpha (the alpha test keeps the rest with probability alpha);
+    * Emission terms sum into the material's emission;
+    * every BSDF term becomes one lobe record (``Material.lobes``, at most MAX_LOBES) of
+      its kind with its weight (constant, or a baked texture), which the path tracer
+      evaluates exactly;
+    * the material's own record is the approximation the G-buffer family shades: an opaque
+      Principled BSDF of the lobes' parameters blended by their mean weights (base colour
+      blended per texel when a weight or a colour is textured)."""
+
+    def __init__(self, ex: "_Exporter", mat):
+        self.ex = ex
+        self.mat = mat
+        self.cap = Capture(ex.image_ref)
+        self.terms: list = []  # (weight expression, node)
+        self.notes: list[str] = []
+
+    def walk(self, sock, w, depth=0):
+        found = _follow(sock)
+        if found is None:
+            return  # an unlinked shader socket is black
+        node, _ = found
+        k = node.bl_idname
+        if getattr(node, "mute", False):
+            raise Unsupported(f"shader node '{node.name}' ({k}) is muted")
+        if depth > _MAX_SHADER_DEPTH:
+            raise Unsupported(f"shader graph deeper than {_MAX_SHADER_DEPTH} nodes at '{node.name}'")
+        if k == "ShaderNodeMixShader":
+            f = self.cap.socket(node.inputs[0])  # raises Unsupported for position-dependent factors
+            f = _cmath("MULTIPLY", f, NE.Const((1.0,)), clamp=True)
+            one_minus = _cmath("SUBTRACT", NE.Const((1.0,)), f)
+            if NE.is_const(f):
+                fv = _const(f)
+                f, one_minus = NE.Const((fv,)), NE.Const((1.0 - fv,))
+            self.walk(node.inputs[1], _mul(w, one_minus), depth + 1)
+            self.walk(node.inputs[2], _mul(w, f), depth + 1)
+        elif k == "ShaderNodeAddShader":
+            self.walk(node.inputs[0], w, depth + 1)
+            self.walk(node.inputs[1], w, depth + 1)
+        elif k in _LOBE_NODES or k == "ShaderNodeBsdfTransparent":
+            self.terms.append((w, node))
+        else:
+            raise Unsupported(f"shader node '{node.name}' ({k}) is not supported")
+
+    def lobe(self, node):
+        """(Material of one lobe, its reader) for a BSDF or Emission node."""
+        k = node.bl_idname
+        r = _MaterialReader(self.ex, self.mat, node)
+        inp = node.inputs
+        if k == "ShaderNodeBsdfPrincipled":
+            m = r.principled()
+            return m, r
+        if k == "ShaderNodeEmission":
+            m = Material(name=self.mat.name, base_color=(0.0, 0.0, 0.0), roughness=1.0, specular_ior_level=0.0)
+            r.emission(m, inp["Color"], inp["Strength"])
+        elif k in ("ShaderNodeBsdfDiffuse", "ShaderNodeBsdfTranslucent"):
+            m = Material(name=self.mat.name, roughness=1.0, specular_ior_level=0.0,
+                         bsdf="translucent" if k == "ShaderNodeBsdfTranslucent" else "principled")
+            if k == "ShaderNodeBsdfDiffuse":
+                r.ignore_linked(("Roughness",))
+                if float(inp["Roughness"].default_value) > 0.0:
+                    r.approx.append("Diffuse BSDF roughness (Oren-Nayar) is read as 0 (Lambert)")
+            r.normal(m, inp["Normal"])
+            r.color(m, "base_color", inp["Color"])
+        elif k in ("ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic", "ShaderNodeBsdfMetallic"):
+            col = inp.get("Color") or inp.get("Base Color")
+            m = Material(name=self.mat.name, metallic=1.0, specular_ior_level=0.5,
+                         bsdf="principled" if k == "ShaderNodeBsdfMetallic" else "glossy")
+            r.scalar(m, "roughness", inp["Roughness"], "roughness")
+            r.normal(m, inp["Normal"])
+            r.color(m, "base_color", col)
+            dist = getattr(node, "distribution", "MULTI_GGX")
+            if m.bsdf == "glossy" and dist != "MULTI_GGX":
+                r.approx.append(f"Glossy BSDF distribution {dist} is read as Multiscatter GGX")
+            an = inp.get("Anisotropy")
+            if an is not None and (an.is_linked or float(an.default_value) != 0.0):
+                r.approx.append("anisotropy is ignored")
+        else:  # Glass, Refraction
+            m = Material(name=self.mat.name, metallic=0.0, specular_ior_level=0.5,
+                         bsdf="glass" if k == "ShaderNodeBsdfGlass" else "refraction")
+            r.scalar(m, "roughness", inp["Roughness"], "roughness")
+            r.scalar(m, "ior", inp["IOR"])
+            r.normal(m, inp["Normal"])
+            r.color(m, "base_color", inp["Color"])
+            dist = getattr(node, "distribution", "MULTI_GGX")
+            want = "MULTI_GGX" if m.bsdf == "glass" else "GGX"
+            if dist != want:
+                r.approx.append(f"{node.bl_label} distribution {dist} is read as "
+                                f"{'Multiscatter GGX' if want == 'MULTI_GGX' else 'GGX'}")
+        return r.finish(m), r
+
+    def read(self, surf) -> Material:
+        self.walk(surf, NE.Const((1.0,)))
+        top = Material(name=self.mat.name, roughness=0.5, specular_ior_level=0.5)
+        # transparency -> alpha
+        trans = NE.Const((0.0,))
+        lobes, emitters = [], []
+        for w, node in self.terms:
+            if node.bl_idname == "ShaderNodeBsdfTransparent":
+                ce = self.cap.socket(node.inputs["Color"])
+                c = NE.evaluate(ce, [[0.5, 0.5]])[0] if NE.is_const(ce) else None
+                if c is None or np.ptp(c) > 1e-6:
+                    self.notes.append(f"Transparent BSDF '{node.name}': its colour is read as its grey level "
+                                      "(shadow rays and camera rays pass through untinted)")
+                grey = NE.Op("to_float", ("RGBA",), (ce,)) if c is None or np.ptp(c) > 1e-6 else NE.Const((float(c[0]),))
+                trans = _cmath("ADD", trans, _mul(w, grey)) if _const(trans) != 0.0 else _mul(w, grey)
+                continue
+            m, r = self.lobe(node)
+            if node.bl_idname == "ShaderNodeEmission":
+                emitters.append((w, m, r))
+                continue
+            if m.alpha < 1.0 or "alpha" in m.maps:
+                if "alpha" in m.maps:
+                    self.notes.append(f"the textured Alpha of '{node.name}' inside a shader mix is ignored")
+                    m.maps.pop("alpha")
+                else:
+                    trans = _cmath("ADD", trans, _mul(w, NE.Const((1.0 - m.alpha,))))
+                    w = _mul(w, NE.Const((m.alpha,)))
+                m.alpha = 1.0
+            lobes.append((w, m, r))
+        tv = _const(trans)
+        keep = None  # 1 - transparency as an expression when textured
+        if tv is not None:
+            tv = min(max(tv, 0.0), 1.0)
+            top.alpha = 1.0 - tv
+            scale = NE.Const((1.0 / (1.0 - tv) if tv < 1.0 else 0.0,))
+        else:
+            keep = _cmath("SUBTRACT", NE.Const((1.0,)), trans, clamp=True)
+            reader = _MaterialReader(self.ex, self.mat, None)
+            kind, val, *rest = reader.resolve(keep, 1, "Alpha (Transparent BSDF)")
+            top.maps["alpha"] = val
+            top.alpha = float(rest[0][0])
+            self.notes.extend(reader.approx)
+            scale = None
+        readers = [r for _, _, r in lobes + emitters]
+        # weights: divided by alpha (the alpha test keeps the surface with probability alpha)
+        out = []
+        for w, m, r in lobes + emitters:
+            if scale is not None:
+                w = _mul(w, scale) if _const(scale) != 1.0 else w
+            else:
+                w = _cmath("DIVIDE", w, keep)
+            out.append((w, m, r))
+        lobes, emitters = out[:len(lobes)], out[len(lobes):]
+        # emission: the weighted sum (means where a weight is textured)
+        em = np.zeros(3)
+        for w, m, r in emitters:
+            wv = _const(w)
+            if wv is None:
+                wv = float(NE.bake(w, 16, 16).mean())
+                self.notes.append("an Emission weighted by a textured factor emits its mean")
+            if "emission" in m.maps and len(self.terms) > 1:
+                self.notes.append("a textured Emission inside a shader mix emits its mean")
+            em += wv * np.asarray(m.emission, np.float64)
+        for _, m, _ in emitters:
+            if len(self.terms) == 1 and tv == 0.0:
+                top.maps["emission"] = m.maps.get("emission")
+        if not top.maps.get("emission"):
+            top.maps.pop("emission", None)
+        top.emission_color, top.emission_strength = _rgb(em), 1.0
+        # lobe weights: constant or baked; at most MAX_LOBES (the heaviest)
+        rd = _MaterialReader(self.ex, self.mat, None)
+        weighted = []
+        for w, m, r in lobes:
+            wv = _const(w)
+            if wv is None:
+                kind, val, *rest = rd.resolve(w, 1, f"lobe weight ({m.bsdf})")
+                if kind == "tex":
+                    m.maps["weight"] = val
+                    wv = float(rest[0][0])
+                else:
+                    wv = float(val[0])
+            m.weight = wv
+            if wv > 0.0 or "weight" in m.maps:
+                weighted.append((w, m, r))
+        self.notes.extend(rd.approx)
+        from ..render.scene_data import MAX_LOBES
+        if len(weighted) > MAX_LOBES:
+            weighted.sort(key=lambda t: -t[1].weight)
+            dropped = weighted[MAX_LOBES:]
+            weighted = weighted[:MAX_LOBES]
+            self.notes.append(f"{len(dropped)} lobes beyond {MAX_LOBES} (the lightest) are dropped")
+        top.lobes = [m for _, m, _ in weighted]
+        self.blend(top, weighted)
+        # support: what the raster passes approximate, and what each lobe's reader noted
+        kinds = {m.bsdf for m in top.lobes} | ({"transmission"} if any(
+            m.bsdf == "principled" and m.transmission > 0 for m in top.lobes) else set())
+        raster = sorted({_RASTER_APPROX[k] for k in kinds if k in _RASTER_APPROX})
+        if len(top.lobes) > 1:
+            raster.append("the lobes as one Principled BSDF of their parameters blended by weight")
+        approx = list(self.notes)
+        unsupported = []
+        for r in readers:
+            approx.extend(a for a in r.approx if a not in approx)
+            unsupported.extend(u for u in r.unsupported if u not in unsupported)
+        if raster:
+            approx.append("in the raster passes " + "; ".join(raster) + " (path tracing evaluates the lobes)")
+        name = self.mat.name
+        top.warnings = [f"Material '{name}': {u}; using the input's own value" for u in unsupported] + \
+            [f"Material '{name}': {a}" for a in approx]
+        if unsupported:
+            top.support = "unsupported: " + "; ".join(unsupported)
+        elif approx:
+            top.support = "approximated: " + "; ".join(approx)
+        top.exact = not (unsupported or approx)
+        tangent = next((r.tangent_uv for _, _, r in weighted if r.tangent_uv is not None), None)
+        top._tangent_uv = tangent
+        top._uv_names = set().union(*[r.uv_names for r in readers]) if readers else set()
+        for _, m, _ in weighted:
+            m.maps.pop("normal", None)  # the lobes share the material's shading normal
+            m.emission_color, m.emission_strength = (0.0, 0.0, 0.0), 0.0
+            m.maps.pop("emission", None)
+        return top
+
+    @staticmethod
+    def raster_diffuse(m: Material) -> float:
+        """How much of a lobe's colour the raster record keeps as diffuse albedo: glass shows
+        its specular reflection alone (what Cycles' direct light sees of it), Principled
+        transmission removes that share of the diffuse."""
+        if m.bsdf in ("glass", "refraction"):
+            return 0.0
+        if m.bsdf == "principled":
+            return 1.0 - m.transmission
+        return 1.0
+
+    def blend(self, top: Material, weighted) -> None:
+        """The G-buffer family's record: parameters blended by the lobes' mean weights."""
+        tot = sum(m.weight for _, m, _ in weighted)
+        if tot <= 0.0:
+            top.base_color, top.specular_ior_level = (0.0, 0.0, 0.0), 0.0
+            return
+        for attr in ("metallic", "roughness", "ior", "specular_ior_level"):
+            setattr(top, attr, float(sum(m.weight * getattr(m, attr) for _, m, _ in weighted) / tot))
+        normals = [m.maps["normal"] for _, m, _ in weighted if "normal" in m.maps]
+        if normals:
+            top.maps["normal"] = normals[0]
+            if len(normals) > 1:
+                self.notes.append("the lobes share the first lobe's normal map")
+        if len(weighted) == 1 and not weighted[0][1].maps.get("weight") and self.raster_diffuse(weighted[0][1]) > 0:
+            m = weighted[0][1]
+            k = m.weight * self.raster_diffuse(m)
+            top.base_color = tuple(float(c) * k if k != 1.0 else float(c) for c in m.base_color)
+            top.specular_tint = m.specular_tint
+            for key in ("base_color", "roughness", "metallic", "specular_ior_level"):
+                if key in m.maps and k == 1.0:
+                    top.maps[key] = m.maps[key]
+            if "base_color" in top.maps:
+                top.base_color_texture = top.maps["base_color"].texture
+            return
+        expr = None
+        for w, m, r in weighted:
+            ce = r.exprs.get("base_color", NE.Const(tuple(float(c) for c in m.base_color)))
+            k = self.raster_diffuse(m)
+            if k != 1.0:
+                w = _mul(w, NE.Const((k,)))
+            term = NE.Op("vmath", ("SCALE",), (ce, NE.Const((0.0, 0.0, 0.0)), NE.Const((0.0, 0.0, 0.0)), w))
+            expr = term if expr is None else NE.Op("vmath", ("ADD",), (expr, term, NE.Const((0.0, 0.0, 0.0)),
+                                                                         NE.Const((1.0,))))
+        rd = _MaterialReader(self.ex, self.mat, None)
+        kind, val, *rest = rd.resolve(expr, 3, "blended Base Color")
+        if kind == "const":
+            top.base_color = _rgb(val)
+        else:
+            top.maps["base_color"] = val
+            top.base_color = _rgb(rest[0])
+            top.base_color_texture = val.texture
+        self.notes.extend(rd.approx)
 
 
 # ------------------------------------------------------------------------------ exporter
@@ -405,6 +732,11 @@ class _Exporter:
                             specular_ior_level=0.0)
         node, _ = found
         kind = node.bl_idname
+        if kind in _LOBE_GRAPH_NODES or (kind == "ShaderNodeBsdfPrincipled" and _transmits(node)):
+            try:
+                return _LobeMaterial(self, mat).read(surf)
+            except Unsupported as exc:
+                return self._fallback(mat, str(exc))
         if kind == "ShaderNodeBsdfPrincipled":
             return _MaterialReader(self, mat, node).principled()
         if kind == "ShaderNodeEmission":

@@ -20,7 +20,7 @@ from .world_map import WorldGPU
 log = logging.getLogger(__name__)
 
 # One source of truth for the layouts (floats per record); see common.glsl.
-MATERIAL_FLOATS = 44  # 4 vec4 of values + one vec4 per texture map (MATERIAL_MAPS order)
+MATERIAL_FLOATS = 56  # 6 vec4 of values + one vec4 per texture map (MATERIAL_MAPS order)
 LIGHT_FLOATS = 28
 EMITTER_FLOATS = 16
 LIGHT_MESH = 4
@@ -80,31 +80,48 @@ def pack_map(scene: SceneData, ref) -> np.ndarray:
     return np.array([ref.texture, w * 4096 + h, flags, ref.scale], np.float32)
 
 
+def _pack_record(scene: SceneData, m, out: np.ndarray, first_lobe: int = -1) -> None:
+    from .scene_data import BSDF_KINDS, MATERIAL_MAPS, TexRef
+
+    maps = dict(m.maps)
+    if "base_color" not in maps and m.base_color_texture >= 0:
+        maps["base_color"] = TexRef(m.base_color_texture)
+    out[0:3] = m.base_color
+    out[3] = maps["base_color"].texture if "base_color" in maps else -1
+    out[4:8] = (m.metallic, m.roughness, m.ior, m.specular_ior_level)
+    out[8:11] = m.emission
+    out[11] = m.alpha
+    out[12:15] = m.specular_tint
+    out[15] = 1.0 if m.exact else 0.0
+    out[16:20] = (BSDF_KINDS.index(m.bsdf), m.transmission, m.weight, 1.0 if m.transmits else 0.0)
+    out[20:24] = (first_lobe, len(m.lobes) if first_lobe >= 0 else 0, 0.0, 0.0)
+    for k, key in enumerate(MATERIAL_MAPS):
+        out[24 + 4 * k:28 + 4 * k] = pack_map(scene, maps.get(key))
+
+
 def pack_materials(scene: SceneData) -> np.ndarray:
-    from .scene_data import MATERIAL_MAPS, TexRef
+    """One record per material (common.glsl ``Material``), the default material at index
+    len(materials), then the lobe records of the materials that have lobes."""
+    from .scene_data import MATERIAL_MAPS, MAX_LOBES
 
     n = max(1, len(scene.materials))
-    out = np.zeros((n + 1, MATERIAL_FLOATS), np.float32)
+    n_lobes = sum(min(len(m.lobes), MAX_LOBES) for m in scene.materials)
+    out = np.zeros((n + 1 + n_lobes, MATERIAL_FLOATS), np.float32)
+    nxt = n + 1
     for i, m in enumerate(scene.materials):
-        maps = dict(m.maps)
-        if "base_color" not in maps and m.base_color_texture >= 0:
-            maps["base_color"] = TexRef(m.base_color_texture)
-        out[i, 0:3] = m.base_color
-        out[i, 3] = maps["base_color"].texture if "base_color" in maps else -1
-        out[i, 4:8] = (m.metallic, m.roughness, m.ior, m.specular_ior_level)
-        out[i, 8:11] = m.emission
-        out[i, 11] = m.alpha
-        out[i, 12:15] = m.specular_tint
-        out[i, 15] = 1.0 if m.exact else 0.0
-        for k, key in enumerate(MATERIAL_MAPS):
-            out[i, 16 + 4 * k:20 + 4 * k] = pack_map(scene, maps.get(key))
+        lobes = m.lobes[:MAX_LOBES]
+        _pack_record(scene, m, out[i], nxt if lobes else -1)
+        for lobe in lobes:
+            _pack_record(scene, lobe, out[nxt])
+            nxt += 1
     # the default material at the end (for material id -1 and out-of-range ids)
     out[n, 0:4] = (0.8, 0.8, 0.8, -1)
     out[n, 4:8] = (0.0, 0.5, 1.5, 0.5)
     out[n, 11] = 1.0
     out[n, 12:16] = (1, 1, 1, 1)
+    out[n, 16:24] = (0, 0, 1, 0, -1, 0, 0, 0)
     for k in range(len(MATERIAL_MAPS)):
-        out[n, 16 + 4 * k:20 + 4 * k] = (-1.0, 0.0, 0.0, 1.0)
+        out[n, 24 + 4 * k:28 + 4 * k] = (-1.0, 0.0, 0.0, 1.0)
     return out
 
 

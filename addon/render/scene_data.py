@@ -91,7 +91,12 @@ class Instance:
 
 # The Principled inputs a texture can drive (Material.maps keys).
 MATERIAL_MAPS = ("base_color", "roughness", "metallic", "alpha", "emission", "normal",
-                 "specular_ior_level")
+                 "specular_ior_level", "weight")
+
+# BSDF kinds of a Material or of one of its lobes (common.glsl BSDF_* in this order).
+BSDF_KINDS = ("principled", "glossy", "glass", "refraction", "translucent")
+TRANSMITTING_KINDS = ("glass", "refraction", "translucent")
+MAX_LOBES = 4  # common.glsl MATERIAL_MAX_LOBES
 
 
 @dataclass
@@ -117,7 +122,17 @@ class Material:
     emitted radiance (Emission Color x Strength), ``maps['normal']`` a tangent-space normal
     map (RGB in [0, 1], strength in ``scale``) over the mesh's ``tangents``.
     ``support`` is "exact", "approximated: <how>" or "unsupported: <node>" (what the
-    exporter understood of the node tree)."""
+    exporter understood of the node tree).
+
+    ``bsdf`` is the kind (BSDF_KINDS) and ``transmission`` the Principled Transmission
+    Weight. ``lobes`` is empty for a material that is one lobe (the record itself). Otherwise
+    (Mix / Add Shaders, Glass, Refraction, Translucent BSDFs, Principled transmission) the
+    path tracer evaluates ``lobes``, each a Material of one kind whose ``weight`` (or
+    ``maps['weight']``, a texture) is the product of the mix factors on its way to the
+    output, while this record's own values are the blended approximation the G-buffer
+    family (DIRECT, screen space, probes, voxels) shades: an opaque Principled BSDF.
+    A Transparent BSDF is folded into ``alpha`` (Cycles' shadow rays pass through it as
+    through alpha)."""
 
     name: str
     base_color: tuple[float, float, float] = (0.8, 0.8, 0.8)
@@ -131,6 +146,10 @@ class Material:
     emission_strength: float = 0.0
     base_color_texture: int = -1  # index into SceneData.textures, -1 = none
     maps: dict = field(default_factory=dict)  # MATERIAL_MAPS key -> TexRef
+    bsdf: str = "principled"
+    transmission: float = 0.0
+    weight: float = 1.0
+    lobes: list = field(default_factory=list)  # [Material], see above
     support: str = "exact"
     # True when the material's node tree was fully understood; False = viewport-colour fallback.
     exact: bool = True
@@ -143,6 +162,12 @@ class Material:
     @property
     def is_emissive(self) -> bool:
         return float(np.max(self.emission)) > 0.0
+
+    @property
+    def transmits(self) -> bool:
+        """Does some lobe refract or transmit light (light below the surface reaches it)?"""
+        return any(x.bsdf in TRANSMITTING_KINDS or (x.bsdf == "principled" and x.transmission > 0.0)
+                   for x in (self.lobes or [self]))
 
     @property
     def is_glossy(self) -> bool:

@@ -116,12 +116,14 @@ def library() -> ShaderLibrary:
 
 
 BRDF_LUT_UNIT = 30  # fixed texture unit of lib/brdf_tables.glsl's u_brdf_lut
+LUT_ROWS = 14
 _luts: dict = {}
 
 
 def brdf_lut(ctx):
     """Cycles' GGX albedo tables (render/brdf_tables.py) as one R32F texture of ``ctx``
-    (1024 x 6: GGX_E, GGX_EAVG, then GGX_SCHLICK_S in four rows), made once per context."""
+    (1024 x 14: GGX_E, GGX_EAVG, then GGX_SCHLICK_S, GGX_GLASS_E and GGX_GLASS_INV_E in four
+    rows each), made once per context."""
     key = id(ctx)
     hit = _luts.get(key)
     if hit is not None and hit[0] is ctx:
@@ -130,11 +132,13 @@ def brdf_lut(ctx):
 
     from . import brdf_tables as T
 
-    data = np.zeros((6, 1024), np.float32)
+    data = np.zeros((LUT_ROWS, 1024), np.float32)
     data[0, :1024] = T.GGX_E
     data[1, :32] = T.GGX_EAVG
     data[2:6] = np.asarray(T.GGX_SCHLICK_S, np.float32).reshape(4, 1024)
-    tex = ctx.texture((1024, 6), 1, data.tobytes(), dtype="f4")
+    data[6:10] = np.asarray(T.GGX_GLASS_E, np.float32).reshape(4, 1024)
+    data[10:14] = np.asarray(T.GGX_GLASS_INV_E, np.float32).reshape(4, 1024)
+    tex = ctx.texture((1024, LUT_ROWS), 1, data.tobytes(), dtype="f4")
     import moderngl
 
     tex.filter = (moderngl.NEAREST, moderngl.NEAREST)

@@ -28,6 +28,15 @@ struct Surface {
     float f0;           // dielectric normal-incidence reflectance
     vec3 spec_tint;
     vec3 emission;
+    // the lobe (lib/common.glsl BSDF_*), as the path tracer reads it; the G-buffer family
+    // builds every surface as an opaque Principled one (kind 0, transmission 0)
+    int kind;
+    float transmission; // Principled Transmission Weight
+    float ior;          // the IOR input as given (refraction: ior entering, 1 / ior leaving)
+    bool backfacing;    // the ray arrived on the back of the triangle (Cycles' SD_BACKFACING)
+    bool transmits;     // some lobe of the material transmits (light below the surface counts)
+    int material;       // record of the material whose lobe list the path tracer evaluates, -1 none
+    vec2 uv;            // where the lobes' textures are sampled
 };
 
 float fresnel_dielectric(float cosi, float eta) {
@@ -62,6 +71,13 @@ Surface make_surface(Material m, vec3 base_color) {
     s.eta = (1.0 + sf) / max(1.0 - sf, 1e-4);
     s.spec_tint = m.spec_tint.rgb;
     s.emission = m.emission.rgb;
+    s.kind = int(m.bsdf.x + 0.5);
+    s.transmission = clamp(m.bsdf.y, 0.0, 1.0);
+    s.ior = max(m.params.z, 1e-5);
+    s.backfacing = false;
+    s.transmits = false;
+    s.material = -1;
+    s.uv = vec2(0.0);
     return s;
 }
 
@@ -219,8 +235,10 @@ struct BsdfEval {
     vec3 glossy;    // f * cos for the specular lobe
 };
 
-// BSDF times the cosine at L; N is the shading normal facing V.
-BsdfEval eval_principled(Surface s, vec3 N, vec3 V, vec3 L) {
+// BSDF times the cosine at L; N is the shading normal facing V. `keep` scales the
+// dielectric part (diffuse and its specular layer) and leaves the metal alone: 1 - the
+// transmission weight, as Cycles layers a Principled BSDF (metal, then glass, then the rest).
+BsdfEval eval_principled_keep(Surface s, vec3 N, vec3 V, vec3 L, float keep) {
     BsdfEval e;
     e.diffuse = vec3(0.0);
     e.glossy = vec3(0.0);
@@ -250,10 +268,12 @@ BsdfEval eval_principled(Surface s, vec3 N, vec3 V, vec3 L) {
         vec3 Fm = fresnel_f82_tint(s.base_color, metal_f82_b(s), VoH);
         spec_m = Fm * DV * ggx_ms_scale(E, Eavg, metal_Fss(s));
     }
-    e.diffuse = (1.0 - s.metallic) * diff * NoL;
-    e.glossy = mix(spec_d, spec_m, s.metallic) * NoL;
+    e.diffuse = (1.0 - s.metallic) * diff * NoL * keep;
+    e.glossy = mix(spec_d * keep, spec_m, s.metallic) * NoL;
     return e;
 }
+
+BsdfEval eval_principled(Surface s, vec3 N, vec3 V, vec3 L) { return eval_principled_keep(s, N, V, L, 1.0); }
 
 // Visible-normal sampling of GGX (isotropic), in the local frame where N = +Z.
 vec3 sample_ggx_vndf(vec3 Vl, float alpha, vec2 u) {
@@ -305,6 +325,221 @@ float pdf_principled(Surface s, vec3 N, vec3 V, vec3 L) {
     vec3 H = normalize(V + L);
     float a2 = s.alpha * s.alpha;
     return w.x * NoL * INV_PI + w.y * ggx_vndf_pdf(NoV, max(dot(N, H), 0.0), a2);
+}
+
+// ---------------------------------------------------------------- every lobe kind
+// The lobes Cycles' other BSDF nodes and the Principled BSDF's transmission make, for the
+// path tracer (the G-buffer family shades every surface with eval_principled above).
+// eval_surface / sample_surface / pdf_surface dispatch on Surface.kind (common.glsl BSDF_*):
+// adding a kind is one case in each. N is the shading normal facing V; L below N is
+// transmission.
+#define LOBE_DIFFUSE 0
+#define LOBE_GLOSSY 1
+#define LOBE_TRANSMISSION 2
+
+// Multiple-scattering energy of GGX glass (Cycles' Multiscatter GGX glass: the lobe is scaled
+// by 1 / E with E the single-scattering albedo, reflection + refraction, tabulated over
+// roughness, cos(N, V) and the IOR); lib/brdf_tables.glsl GGX_GLASS_E / GGX_GLASS_INV_E.
+float ggx_glass_E(float rough, float mu, float eta) {
+#ifdef GGX_GLASS_TABLES
+    bool inv = eta < 1.0;
+    float ior = inv ? 1.0 / eta : eta;
+    float z = sqrt(abs((ior - 1.0) / (ior + 1.0))) * 15.0;
+    float x = clamp(rough, 0.0, 1.0) * 15.0, y = clamp(mu, 0.0, 1.0) * 15.0;
+    z = clamp(z, 0.0, 15.0);
+    int i0 = min(int(x), 15), j0 = min(int(y), 15), k0 = min(int(z), 15);
+    int i1 = min(i0 + 1, 15), j1 = min(j0 + 1, 15), k1 = min(k0 + 1, 15);
+    float tx = x - float(i0), ty = y - float(j0), tz = z - float(k0);
+    float v[8];
+    for (int c = 0; c < 8; ++c) {
+        int i = (c & 1) != 0 ? i1 : i0, j = (c & 2) != 0 ? j1 : j0, k = (c & 4) != 0 ? k1 : k0;
+        int o = (k * 16 + j) * 16 + i;
+        v[c] = inv ? GGX_GLASS_INV_E_at(o) : GGX_GLASS_E_at(o);
+    }
+    float a = mix(mix(v[0], v[1], tx), mix(v[2], v[3], tx), ty);
+    float b = mix(mix(v[4], v[5], tx), mix(v[6], v[7], tx), ty);
+    return max(mix(a, b, tz), 1e-3);
+#else
+    return 1.0;
+#endif
+}
+
+// Smooth glass is GGX of this alpha (Cycles: a singular lobe): below it 1 - alpha^2 rounds to 1
+// in float32 and D at the half vector recomputed from a refracted direction overflows.
+#define DIELECTRIC_MIN_ALPHA 1e-3
+
+// A dielectric interface with GGX microfacets (Walter et al. 2007, as Cycles' microfacet
+// glass): eta = IOR behind the surface / IOR in front (ior entering, 1 / ior leaving).
+// f * |cos L|: reflection F * refl_tint above N, refraction (1 - F) * trans_tint below
+// (radiance is not scaled by 1 / eta^2 on refraction, as in Cycles); fresnel = false is
+// refraction alone with weight 1 (the Refraction BSDF).
+vec3 dielectric_eval(vec3 N, vec3 V, vec3 L, float alpha, float eta, vec3 refl_tint, vec3 trans_tint, bool fresnel) {
+    alpha = max(alpha, DIELECTRIC_MIN_ALPHA);
+    float NoV = max(dot(N, V), 1e-4);
+    float NoL = dot(N, L);
+    float a2 = alpha * alpha;
+    if (NoL > 0.0) {
+        if (!fresnel) return vec3(0.0);
+        vec3 H = normalize(V + L);
+        float F = fresnel_dielectric(max(dot(V, H), 0.0), eta);
+        return refl_tint * (F * ggx_D(max(dot(N, H), 0.0), a2) * ggx_V(NoV, NoL, a2) * NoL);
+    }
+    if (NoL == 0.0) return vec3(0.0);
+    vec3 Ht = V + eta * L;
+    float len2 = dot(Ht, Ht);
+    if (len2 <= 1e-20) return vec3(0.0);
+    vec3 H = Ht * inversesqrt(len2);
+    if (dot(N, H) < 0.0) H = -H;
+    float VoH = dot(V, H), LoH = dot(L, H);
+    if (VoH <= 0.0 || LoH >= 0.0) return vec3(0.0);
+    float F = fresnel ? fresnel_dielectric(VoH, eta) : 0.0;
+    float aNoL = -NoL;
+    float G2 = 4.0 * NoV * aNoL * ggx_V(NoV, aNoL, a2);
+    return trans_tint * ((1.0 - F) * ggx_D(dot(N, H), a2) * G2 * VoH * eta * eta * (-LoH) / (NoV * len2));
+}
+
+float dielectric_pdf(vec3 N, vec3 V, vec3 L, float alpha, float eta, bool fresnel) {
+    alpha = max(alpha, DIELECTRIC_MIN_ALPHA);
+    float NoV = max(dot(N, V), 1e-4);
+    float NoL = dot(N, L);
+    float a2 = alpha * alpha;
+    if (NoL > 0.0) {
+        if (!fresnel) return 0.0;
+        vec3 H = normalize(V + L);
+        float F = fresnel_dielectric(max(dot(V, H), 0.0), eta);
+        return F * ggx_vndf_pdf(NoV, max(dot(N, H), 0.0), a2);
+    }
+    if (NoL == 0.0) return 0.0;
+    vec3 Ht = V + eta * L;
+    float len2 = dot(Ht, Ht);
+    if (len2 <= 1e-20) return 0.0;
+    vec3 H = Ht * inversesqrt(len2);
+    if (dot(N, H) < 0.0) H = -H;
+    float VoH = dot(V, H), LoH = dot(L, H);
+    if (VoH <= 0.0 || LoH >= 0.0) return 0.0;
+    float F = fresnel ? fresnel_dielectric(VoH, eta) : 0.0;
+    float NoH = dot(N, H);
+    return (1.0 - F) * ggx_G1(NoV, a2) * ggx_D(NoH, a2) * VoH / NoV * eta * eta * (-LoH) / len2;
+}
+
+// A visible normal, then reflection with probability F, else refraction (total internal
+// reflection: F = 1).
+vec3 dielectric_sample(vec3 N, vec3 V, float alpha, float eta, bool fresnel, vec3 u, out bool refracted) {
+    alpha = max(alpha, DIELECTRIC_MIN_ALPHA);
+    vec3 Vl = to_local(V, N);
+    vec3 Hl = sample_ggx_vndf(Vl, alpha, u.xy);
+    float F = fresnel ? fresnel_dielectric(max(dot(Vl, Hl), 0.0), eta) : 0.0;
+    refracted = u.z >= F;
+    vec3 Ll = refracted ? refract(-Vl, Hl, 1.0 / eta) : reflect(-Vl, Hl);
+    return to_world(Ll, N);
+}
+
+float surface_eta(Surface s) { return s.backfacing ? 1.0 / s.ior : s.ior; }
+
+// Cycles' Principled: metal, then glass of weight (1 - metallic) transmission (reflection
+// untinted, refraction tinted by sqrt(base colour) at each interface), then the rest.
+vec3 principled_glass(Surface s, vec3 N, vec3 V, vec3 L) {
+    float w = (1.0 - s.metallic) * s.transmission;
+    if (w <= 0.0) return vec3(0.0);
+    float eta = surface_eta(s);
+    float ms = 1.0 / ggx_glass_E(s.roughness, max(dot(N, V), 0.0), eta);
+    return (w * ms) * dielectric_eval(N, V, L, s.alpha, eta, vec3(1.0), sqrt(clamp(s.base_color, 0.0, 1.0)), true);
+}
+
+// Lobe selection of a Principled surface with transmission: diffuse, specular, glass.
+vec3 principled_lobe_weights(Surface s, float NoV) {
+    float keep = 1.0 - s.transmission;
+    float layer = dielectric_layer_albedo(s, NoV);
+    float diff = (1.0 - s.metallic) * keep * (1.0 - layer) * luminance(s.base_color);
+    float spec = (1.0 - s.metallic) * keep * layer + s.metallic * luminance(metal_albedo_estimate(s, NoV));
+    float glass = (1.0 - s.metallic) * s.transmission;
+    float tot = diff + spec + glass;
+    return tot > 0.0 ? vec3(diff, spec, glass) / tot : vec3(0.5, 0.5, 0.0);
+}
+
+BsdfEval eval_surface(Surface s, vec3 N, vec3 V, vec3 L) {
+    BsdfEval e;
+    e.diffuse = vec3(0.0);
+    e.glossy = vec3(0.0);
+    float NoL = dot(N, L);
+    if (s.kind == BSDF_PRINCIPLED) {
+        if (s.transmission <= 0.0) return eval_principled(s, N, V, L);
+        if (NoL > 0.0) e = eval_principled_keep(s, N, V, L, 1.0 - s.transmission);
+        e.glossy += principled_glass(s, N, V, L);
+    } else if (s.kind == BSDF_GLOSSY) {
+        if (NoL <= 0.0) return e;
+        float NoV = max(dot(N, V), 1e-4);
+        vec3 H = normalize(V + L);
+        float a2 = s.alpha * s.alpha;
+        float E = ggx_E(s.roughness, NoV);
+        e.glossy = s.base_color * ggx_D(max(dot(N, H), 0.0), a2) * ggx_V(NoV, NoL, a2) * NoL
+                 * ggx_ms_scale(E, ggx_Eavg(s.roughness), s.base_color);
+    } else if (s.kind == BSDF_GLASS || s.kind == BSDF_REFRACTION) {
+        bool glass = s.kind == BSDF_GLASS;
+        float eta = surface_eta(s);
+        float ms = glass ? 1.0 / ggx_glass_E(s.roughness, max(dot(N, V), 0.0), eta) : 1.0;
+        e.glossy = ms * dielectric_eval(N, V, L, s.alpha, eta, s.base_color, s.base_color, glass);
+    } else if (s.kind == BSDF_TRANSLUCENT) {
+        if (NoL < 0.0) e.diffuse = s.base_color * (-NoL * INV_PI);
+    }
+    return e;
+}
+
+float pdf_surface(Surface s, vec3 N, vec3 V, vec3 L) {
+    float NoL = dot(N, L);
+    float NoV = max(dot(N, V), 1e-4);
+    float a2 = s.alpha * s.alpha;
+    if (s.kind == BSDF_PRINCIPLED) {
+        if (s.transmission <= 0.0) return pdf_principled(s, N, V, L);
+        vec3 w = principled_lobe_weights(s, NoV);
+        float p = w.z * dielectric_pdf(N, V, L, s.alpha, surface_eta(s), true);
+        if (NoL > 0.0) p += w.x * NoL * INV_PI + w.y * ggx_vndf_pdf(NoV, max(dot(N, normalize(V + L)), 0.0), a2);
+        return p;
+    }
+    if (s.kind == BSDF_GLOSSY) return NoL > 0.0 ? ggx_vndf_pdf(NoV, max(dot(N, normalize(V + L)), 0.0), a2) : 0.0;
+    if (s.kind == BSDF_GLASS || s.kind == BSDF_REFRACTION)
+        return dielectric_pdf(N, V, L, s.alpha, surface_eta(s), s.kind == BSDF_GLASS);
+    if (s.kind == BSDF_TRANSLUCENT) return NoL < 0.0 ? -NoL * INV_PI : 0.0;
+    return 0.0;
+}
+
+// A direction from the surface's lobes and which kind of bounce it is (LOBE_*, for
+// Cycles' bounce limits); its pdf is pdf_surface's.
+vec3 sample_surface(Surface s, vec3 N, vec3 V, vec3 u, out int lobe) {
+    float NoV = max(dot(N, V), 1e-4);
+    lobe = LOBE_GLOSSY;
+    bool refracted = false;
+    if (s.kind == BSDF_PRINCIPLED) {
+        if (s.transmission <= 0.0) {
+            float pdf;
+            lobe = u.z < lobe_weights(s, NoV).x ? LOBE_DIFFUSE : LOBE_GLOSSY;
+            return sample_principled(s, N, V, u, pdf);
+        }
+        vec3 w = principled_lobe_weights(s, NoV);
+        if (u.z < w.x) {
+            lobe = LOBE_DIFFUSE;
+            return to_world(sample_cosine_hemisphere(u.xy), N);
+        }
+        if (u.z < w.x + w.y || w.z <= 0.0) {
+            vec3 Vl = to_local(V, N);
+            return to_world(reflect(-Vl, sample_ggx_vndf(Vl, s.alpha, u.xy)), N);
+        }
+        float uz = clamp((u.z - w.x - w.y) / w.z, 0.0, 0.99999994);
+        vec3 L = dielectric_sample(N, V, s.alpha, surface_eta(s), true, vec3(u.xy, uz), refracted);
+        lobe = refracted ? LOBE_TRANSMISSION : LOBE_GLOSSY;
+        return L;
+    }
+    if (s.kind == BSDF_GLASS || s.kind == BSDF_REFRACTION) {
+        vec3 L = dielectric_sample(N, V, s.alpha, surface_eta(s), s.kind == BSDF_GLASS, u, refracted);
+        lobe = refracted ? LOBE_TRANSMISSION : LOBE_GLOSSY;
+        return L;
+    }
+    if (s.kind == BSDF_TRANSLUCENT) {
+        lobe = LOBE_TRANSMISSION;
+        return to_world(sample_cosine_hemisphere(u.xy), -N);
+    }
+    vec3 Vl = to_local(V, N);  // BSDF_GLOSSY
+    return to_world(reflect(-Vl, sample_ggx_vndf(Vl, s.alpha, u.xy)), N);
 }
 
 #endif

@@ -48,13 +48,29 @@ const float T_INF = 1e30;  // "no hit" ray length (e.g. towards the sun)
 #define MAP_EMISSION 4
 #define MAP_NORMAL 5
 #define MAP_SPECULAR 6
-#define MATERIAL_MAP_COUNT 7
+#define MAP_WEIGHT 7       // a lobe's weight in its material's lobe list (Mix Shader factors)
+#define MATERIAL_MAP_COUNT 8
+
+// BSDF kinds of a lobe (Material.bsdf.x; scene_data.BSDF_KINDS order). Adding a kind touches
+// scene_data.BSDF_KINDS, the exporter's reading of its node and lib/brdf.glsl's
+// eval_surface / sample_surface / pdf_surface.
+#define BSDF_PRINCIPLED 0
+#define BSDF_GLOSSY 1      // GGX with a constant Fresnel colour (Cycles' Glossy BSDF)
+#define BSDF_GLASS 2       // dielectric GGX reflection + refraction, tinted both ways (Glass BSDF)
+#define BSDF_REFRACTION 3  // GGX refraction only, no Fresnel (Refraction BSDF)
+#define BSDF_TRANSLUCENT 4 // diffuse transmission (Translucent BSDF)
+#define MATERIAL_MAX_LOBES 4
 
 struct Material {
     vec4 base_color;   // rgb linear (the texture's mean when textured), w = base-colour layer (-1 = none)
     vec4 params;       // metallic, roughness, ior, specular_ior_level
     vec4 emission;     // rgb radiance (colour * strength), w = alpha
     vec4 spec_tint;    // rgb specular tint, w = 1 when the material was understood exactly
+    vec4 bsdf;         // x = BSDF_* kind, y = Principled transmission weight, z = the lobe's weight
+                       // (constant, or the mean of maps[MAP_WEIGHT]), w = 1 when some lobe transmits
+    vec4 lobes;        // x = first lobe record, y = lobe count (0: this record is the one lobe).
+                       // A material with lobes is, in this record, the blended approximation the
+                       // G-buffer family renders; the path tracer evaluates its lobe records.
     vec4 maps[MATERIAL_MAP_COUNT];  // textures feeding the values above (lib/textures.glsl)
 };
 

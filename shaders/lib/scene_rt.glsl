@@ -65,6 +65,9 @@ uniform int u_world_table;
 uniform ivec2 u_world_grid;
 uniform int u_alpha_test;  // 1 when some material has alpha < 1 or an alpha texture
 
+// a material's lobe list (Mix/Add Shaders, glass, translucency): bsdf_eval / bsdf_pdf / bsdf_sample
+#include "lib/bsdf.glsl"
+
 int rt_hit_material(int instance, int prim) {
     int mat = rt_tri_info[prim].y;
     int off = rt_instances[instance].info.z;
@@ -127,6 +130,12 @@ bool scene_trace(vec3 o, vec3 d, float tmin, float tmax, out SurfaceHit s) {
     MaterialSample ms = sample_material(u_textures, m, sf.uv);
     s.normal = apply_normal_map(ms, sf.normal, sf.tangent);
     s.bsdf = make_surface(material_at(m, ms), ms.base_color);
+#ifdef RT_EXACT_BSDF  // the path tracer: the material's lobe list rather than its blended record
+    s.bsdf.material = mid;
+    s.bsdf.uv = sf.uv;
+    s.bsdf.backfacing = dot(sf.geo_normal, d) > 0.0;
+    s.bsdf.transmits = m.bsdf.w > 0.5;
+#endif
     return true;
 }
 
@@ -229,13 +238,17 @@ vec3 shade_direct_split(Surface bs, vec3 p, vec3 N, vec3 Ng, vec3 V, inout Rng r
         ls = sample_light(L, p, ul.yz, ul.w);
         shadowed = L.axis_w.w > 0.5;
     }
-    if (ls.pdf <= 0.0 || sel <= 0.0 || dot(ls.dir, Ng) <= 0.0) return vec3(0.0);
-    BsdfEval fe = eval_principled(bs, N, V, ls.dir);
+    // a light below the surface lights it only through a transmitting lobe; the shadow ray
+    // then leaves from the far side
+    bool below = dot(ls.dir, Ng) <= 0.0;
+    if (ls.pdf <= 0.0 || sel <= 0.0 || (below && !bs.transmits)) return vec3(0.0);
+    BsdfEval fe = bsdf_eval(bs, N, V, ls.dir);
     vec3 f = fe.diffuse + fe.glossy;
     if (max3(f) <= 0.0 || max3(ls.Li) <= 0.0) return vec3(0.0);
-    if (shadowed && scene_occluded(p, ls.dir, 0.0, ls.dist * (1.0 - 1e-4))) return vec3(0.0);
+    vec3 po = below ? rt_offset_ray(rt_offset_ray(p, -Ng), -Ng) : p;
+    if (shadowed && scene_occluded(po, ls.dir, 0.0, ls.dist * (1.0 - 1e-4))) return vec3(0.0);
     float lpdf = sel * ls.pdf;
-    float w = (ls.delta || !mis) ? 1.0 : power_heuristic(lpdf, pdf_principled(bs, N, V, ls.dir));
+    float w = (ls.delta || !mis) ? 1.0 : power_heuristic(lpdf, bsdf_pdf(bs, N, V, ls.dir));
     glossy = fe.glossy * ls.Li * (w / lpdf);
     ldist = ls.dist;
     return f * ls.Li * (w / lpdf);

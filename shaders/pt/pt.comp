@@ -8,11 +8,15 @@
 // Every light type in Cycles' units with next-event estimation + MIS against BSDF sampling;
 // lights do not occlude (Cycles' lights are transparent to rays); world colour seen and
 // lighting through BSDF sampling; Russian roulette after u_rr_start bounces.
+// Materials: every lobe of the material's lobe list (RT_EXACT_BSDF: lib/bsdf.glsl), refraction
+// and diffuse transmission leaving from the far side of the surface; transmission bounces
+// counted against u_max_transmission as Cycles counts them.
 // Writes the per-frame mean of its samples: colour and three effect AOVs
 // (direct = paths with one scattering, indirect diffuse / glossy by the first lobe).
 // Ray tracing, materials, light selection, NEE and the MIS of BSDF rays hitting lights are
 // the shared component lib/scene_rt.glsl (host side: render/rt_scene.py SceneRT).
 #define USE_SCENE_BUFFERS
+#define RT_EXACT_BSDF
 #include "lib/common.glsl"
 #include "lib/sampling.glsl"
 #include "lib/rng.glsl"
@@ -37,6 +41,7 @@ uniform int u_spp;
 uniform int u_max_bounces;
 uniform int u_max_diffuse;
 uniform int u_max_glossy;
+uniform int u_max_transmission;
 uniform int u_rr_start;
 uniform ivec2 u_offset;    // tile origin (dispatches are tiled to stay short)
 uniform int u_pixel_sequence;  // in-pixel position: 0 white noise, 1 Halton(2,3) over u_sample, rotated per pixel
@@ -77,9 +82,9 @@ PathOut trace_path(vec2 pix, inout Rng rng) {
     float tmin;
     camera_ray(pix, o, d, tmin);
     vec3 beta = vec3(1.0);
-    float bsdf_pdf = 0.0;  // pdf of the last BSDF sample (0 = camera ray: no MIS)
+    float last_pdf = 0.0;  // pdf of the last BSDF sample (0 = camera ray: no MIS)
     int depth = 0;         // scatterings so far
-    int n_diffuse = 0, n_glossy = 0;
+    int n_diffuse = 0, n_glossy = 0, n_transmission = 0;
     int first_lobe = 0;
     bool last = false;     // a bounce limit was passed: collect emission at the next hit, then stop
     for (int iter = 0; iter < 64; ++iter) {
@@ -87,11 +92,12 @@ PathOut trace_path(vec2 pix, inout Rng rng) {
         bool hit = scene_trace(o, d, tmin, T_INF, sh);
         // emission along the ray: lights crossed (transparent), sun disks and the world on a
         // miss, the surface's emission on a hit; MIS-weighted against NEE (the shared block)
-        vec3 Le = bsdf_hit_light_mis(o, d, tmin, hit, sh, bsdf_pdf, depth > 0 || u_lights_visible_camera != 0);
+        vec3 Le = bsdf_hit_light_mis(o, d, tmin, hit, sh, last_pdf, depth > 0 || u_lights_visible_camera != 0);
         if (max3(Le) > 0.0) add(out_, beta * Le, depth, first_lobe);
         if (depth == 0 && hit) out_.coverage = 1.0;
         if (!hit || last) break;
         Surface s = sh.bsdf;
+        bsdf_begin(s);  // the material's lobes, once per vertex
         vec3 V = -d;
         vec3 N, Ng, p;
         surface_frame(sh, V, N, Ng, p);
@@ -108,22 +114,25 @@ PathOut trace_path(vec2 pix, inout Rng rng) {
         }
         // BSDF sampling (also at the last vertex: the MIS companion of its light sample)
         vec4 ub = rng_next4(rng);
-        float NoV = max(dot(N, V), 1e-4);
-        vec2 lw = lobe_weights(s, NoV);
-        int lobe = ub.z < lw.x ? 0 : 1;
-        float pdf;
-        vec3 L = sample_principled(s, N, V, ub.xyz, pdf);
-        if (pdf <= 0.0 || dot(L, Ng) <= 0.0) break;
-        BsdfEval fe = eval_principled(s, N, V, L);
+        int lobe;
+        vec3 L = bsdf_sample(s, N, V, ub.xyz, lobe);
+        bool through = dot(L, Ng) < 0.0;  // refraction / translucency: below the surface
+        if (through != (lobe == LOBE_TRANSMISSION)) break;
+        float pdf = bsdf_pdf(s, N, V, L);
+        if (pdf <= 0.0) break;
+        BsdfEval fe = bsdf_eval(s, N, V, L);
         vec3 f = fe.diffuse + fe.glossy;
         if (max3(f) <= 0.0) break;
-        if (lobe == 0) ++n_diffuse; else ++n_glossy;
-        if (depth == 0) first_lobe = lobe;
+        if (lobe == LOBE_DIFFUSE) ++n_diffuse;
+        else if (lobe == LOBE_GLOSSY) ++n_glossy;
+        else ++n_transmission;
+        if (depth == 0) first_lobe = lobe == LOBE_DIFFUSE ? 0 : 1;
         beta *= f / pdf;
-        bsdf_pdf = pdf;
+        last_pdf = pdf;
         depth += 1;
-        last = depth > u_max_bounces || n_diffuse > u_max_diffuse || n_glossy > u_max_glossy;
-        o = p;
+        last = depth > u_max_bounces || n_diffuse > u_max_diffuse || n_glossy > u_max_glossy
+            || n_transmission > u_max_transmission;
+        o = through ? rt_offset_ray(sh.position, -Ng) : p;
         d = L;
         tmin = 0.0;
         if (depth >= u_rr_start) {

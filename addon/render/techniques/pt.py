@@ -6,7 +6,7 @@ Lambert diffuse under a dielectric GGX layer, metals, visible-normal GGX samplin
 estimation for every light type (point/sphere, spot, sun with angle, area rectangle/disk/
 ellipse, emissive triangles chosen by power) combined with BSDF sampling by MIS with the
 power heuristic (Veach & Guibas 1995); world colour as background and light; Russian
-roulette; bounce limits with Cycles' meaning (max total, diffuse, glossy). Each frame writes
+roulette; bounce limits with Cycles' meaning (max total, diffuse, glossy, transmission). Each frame writes
 the mean of ``spp_per_frame`` samples; the renderer accumulates frames (progressive), and
 any change of scene or parameter restarts the accumulation there. Rays, materials, light
 selection, next-event estimation and the MIS of BSDF rays hitting lights come from the shared
@@ -20,6 +20,7 @@ changes, moving objects rebuilds the top level only, and every graph of the sess
 | max_bounces | 0–64 | Cycles' Max Bounces (total) |
 | diffuse_bounces | 0–64 | Cycles' Diffuse bounces |
 | glossy_bounces | 0–64 | Cycles' Glossy bounces |
+| transmission_bounces | 0–64 | Cycles' Transmission bounces (refraction, translucency) |
 | rr_start | 0–64 | Russian roulette starts after this many bounces |
 | tile | 16–1024 | pixels per side of one dispatch (keeps a dispatch short on slow GPUs) |
 | pixel_sequence | 0–2 | in-pixel position of the camera ray: 0 white noise per sample; 1 Halton(2,3) indexed by the frame counter (``frame.sample`` x spp + k) with a per-pixel Cranley-Patterson rotation; 2 (default) Halton where the frames form one fresh accumulation (F12, offline renders: ``frame.keeps_history`` False), white noise where history is kept (viewport, animation: TAA under motion measured worse with Halton, docs/techniques/TAA.md) |
@@ -59,6 +60,7 @@ class PathTracePass(Pass):
         Param("max_bounces", 12, 0, 64, "Cycles' Max Bounces (total)"),
         Param("diffuse_bounces", 12, 0, 64, "Cycles' Diffuse bounces"),
         Param("glossy_bounces", 12, 0, 64, "Cycles' Glossy bounces"),
+        Param("transmission_bounces", 12, 0, 64, "Cycles' Transmission bounces"),
         Param("rr_start", 3, 0, 64, "Russian roulette after this many bounces"),
         Param("tile", 128, 16, 1024, "pixels per side of one dispatch"),
         Param("pixel_sequence", 2, 0, 2, "in-pixel camera-ray position: 0 white noise, 1 Halton(2,3) over the "
@@ -91,6 +93,7 @@ class PathTracePass(Pass):
         set_uniform(prog, "u_max_bounces", int(self["max_bounces"]))
         set_uniform(prog, "u_max_diffuse", int(self["diffuse_bounces"]))
         set_uniform(prog, "u_max_glossy", int(self["glossy_bounces"]))
+        set_uniform(prog, "u_max_transmission", int(self["transmission_bounces"]))
         set_uniform(prog, "u_rr_start", int(self["rr_start"]))
         seq = int(self["pixel_sequence"])
         set_uniform(prog, "u_pixel_sequence", int(not frame.keeps_history) if seq == 2 else seq)
