@@ -8,7 +8,9 @@
 Scenes (``blender_tests/scenes_world.py``): ``hdri:NAME`` (one of the eight HDRIs Blender
 ships, through an Environment Texture rotated by a Mapping node), ``pavilion:NAME`` (the same
 under a roof and beside a wall, so part of it sees the world only around a corner),
-``sky:TYPE`` (a Sky Texture of that type) and ``gradient`` (a procedural world). ``all`` =
+``sky:TYPE`` (a Sky Texture of that type), ``gradient`` (a procedural world) and
+``room:bsdf`` (blender_tests/scenes_real.py: glass, mixes, transparency and translucency in a
+room lit by an area light; every technique is measured there the same way). ``all`` =
 the eight HDRIs, the four sky types, the gradient and the pavilion under courtyard.
 
 For every scene: the world's evaluation time (Cycles, once; cached afterwards), the Cycles
@@ -50,7 +52,13 @@ def build(spec: str, res: int):
         return SW.sky_scene(arg or None, res=res)
     if kind == "gradient":
         return SW.gradient_scene(res=res)
-    raise SystemExit(f"bench_world: unknown scene {spec!r} (hdri:NAME, pavilion:NAME, sky:TYPE, gradient)")
+    if kind == "room" and arg in ("", "bsdf"):
+        import tempfile
+
+        import scenes_real
+
+        return scenes_real.bsdf_room(tempfile.mkdtemp(prefix="gi_bsdf_room_"), resolution=res)
+    raise SystemExit(f"bench_world: unknown scene {spec!r} (hdri:NAME, pavilion:NAME, sky:TYPE, gradient, room:bsdf)")
 
 
 def tonemap(img):
