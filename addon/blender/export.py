@@ -44,7 +44,7 @@ from ..render.node_eval import Unsupported
 from ..render.scene_data import (AreaShape, Camera, Instance, Light, LightType, Material,
                                  Mesh, SceneData, SceneError, TexRef, Texture, World)
 from ..render.world_map import extract_sun, world_map_of
-from .material_nodes import Capture
+from .material_nodes import Capture, follow_link
 
 __all__ = ["export_scene", "SceneExporter", "instance_id", "DEFAULT_MATERIAL_NAME"]
 
@@ -55,7 +55,6 @@ _AREA_SHAPES = {"SQUARE": AreaShape.SQUARE, "RECTANGLE": AreaShape.RECTANGLE,
                 "DISK": AreaShape.DISK, "ELLIPSE": AreaShape.ELLIPSE}
 _LIGHT_TYPES = {"POINT": LightType.POINT, "SPOT": LightType.SPOT, "SUN": LightType.SUN,
                 "AREA": LightType.AREA}
-_PASS_THROUGH = {"NodeReroute"}
 
 
 # ------------------------------------------------------------------------------ helpers
@@ -71,20 +70,7 @@ def _srgb_to_linear(c: np.ndarray) -> np.ndarray:
     return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
 
 
-def _follow(socket):
-    """The (node, output socket) linked into ``socket``, skipping reroutes; None if unlinked."""
-    seen = 0
-    while socket is not None and socket.is_linked and seen < 64:
-        link = next((lk for lk in socket.links if lk.is_valid and not lk.is_muted), None)
-        if link is None:
-            return None
-        node = link.from_node
-        if node.bl_idname in _PASS_THROUGH:
-            socket = node.inputs[0] if node.inputs else None
-            seen += 1
-            continue
-        return node, link.from_socket
-    return None
+_follow = follow_link  # (node, output socket) linked into a socket, skipping reroutes
 
 
 def _node_tree(idblock):

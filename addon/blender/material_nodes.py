@@ -24,8 +24,9 @@ _PASS_THROUGH = {"NodeReroute"}
 _CUBIC = ("Cubic", "Smart")
 
 
-def _link_into(socket):
-    """(from_node, from_socket) feeding ``socket`` through reroutes; None when unlinked."""
+def follow_link(socket):
+    """(from_node, from_socket) feeding ``socket`` through reroutes; None when unlinked.
+    The one walk over links that the exporter and the node reader share."""
     seen = 0
     while socket is not None and socket.is_linked and seen < 64:
         link = next((lk for lk in socket.links if lk.is_valid and not lk.is_muted), None)
@@ -36,10 +37,17 @@ def _link_into(socket):
             socket = node.inputs[0] if node.inputs else None
             seen += 1
             continue
-        if getattr(node, "mute", False):
-            raise Unsupported(f"node '{node.name}' ({node.bl_idname}) is muted")
         return node, link.from_socket
     return None
+
+
+def _link_into(socket):
+    """follow_link, refusing a muted node (the reader cannot express what it passes on)."""
+    found = follow_link(socket)
+    if found is not None and getattr(found[0], "mute", False):
+        node = found[0]
+        raise Unsupported(f"node '{node.name}' ({node.bl_idname}) is muted")
+    return found
 
 
 def _socket_channels(sock) -> int:
