@@ -311,6 +311,8 @@ class TAAPass(_FilterPass):
         set_uniform(prog, "u_gamma", float(self["gamma"]))
         set_uniform(prog, "u_max_history", float(self["max_history"]))
         set_uniform(prog, "u_input_filter", int(self["input_filter"]))
+        world = rc.scene.scene.world
+        set_uniform(prog, "u_background_filter", 0 if getattr(world, "map", None) is not None else 1)
         set_uniform(prog, "u_young", float(self["young"]))
         set_uniform(prog, "u_history_filter", int(self["history_filter"]))
         set_uniform(prog, "u_radius", int(self["radius"]))
