@@ -312,7 +312,7 @@ def test_blender_panels_show_for_the_engine():
 
 
 def test_settings_contract():
-    """scene.gi_preview: technique ids from TECHNIQUES.md plus AUTO, samples, quality."""
+    """scene.gi_preview: every registered technique id plus AUTO, samples, quality."""
     sc = bpy.data.scenes.new("contract")
     try:
         s = sc.gi_preview

@@ -1,4 +1,4 @@
-"""Scene settings: ``scene.gi_preview`` (public contract, see DESIGN.md)."""
+"""Scene settings: ``scene.gi_preview`` (public contract: scripts and saved files rely on these names)."""
 from __future__ import annotations
 
 import zlib

@@ -1,4 +1,4 @@
-// ssr_miss.comp — SSR's miss trace (issue 9 point 3): each (scaled) pixel's reflection ray,
+// ssr_miss.comp — SSR's miss trace: each (scaled) pixel's reflection ray,
 // the one ssr_trace.comp drew from the GGX lobe and marched on screen, traced again through
 // the scene's BVH with the shared ray tracer (lib/scene_rt.glsl), so that the share of the
 // lobe the screen did not find gets the light of what the ray really meets, hidden or off
@@ -51,9 +51,9 @@ uniform int u_shade_samples;   // light/BSDF/world samples per hit (param miss_s
 // reflected light's image lies behind the reflecting pixel, as one parallax: a hit's light is
 // where the hit is (t), except what its glossy lobe reflects from a light, whose image lies at
 // the unfolded path length t + distance to the light (a highlight moves with the viewpoint
-// over the hit's surface; on issue 9's corridor the gold wall's highlights seen in the mirror
+// over the hit's surface; on the corridor test scene the gold wall's highlights seen in the mirror
 // floor lagged behind when reprojected by the wall point). The parallaxes 1 / (dcam + d) are
-// averaged weighted by luminance. SSR_MISS_HIT_PARALLAX: gdist = t (the sixth session's).
+// averaged weighted by luminance. SSR_MISS_HIT_PARALLAX: gdist = t (the hit's own distance only).
 vec3 miss_radiance(vec3 O, vec3 L, float dcam, inout Rng rng, out float t, out float gdist) {
     SurfaceHit s;
     t = SSR_MISS_ESCAPE_DIST;

@@ -24,7 +24,7 @@
 // no glossy lobe or the surface is rougher than u_max_roughness (DIRECT's term stays).
 // o_hit_dist: the found hits' mean distance (same weights; 0 = none), with which the
 // temporal pass reprojects the reflection by the reflected point.
-// SSR_MISS (SSR's own chain, issue 9 point 3): o_fallback, the glossy light (times the
+// SSR_MISS (SSR's own chain): o_fallback, the glossy light (times the
 // specular albedo, the composite's units) for the share 1 - a of the lobe not found: the
 // same neighbours' rays traced through the scene (ssr_miss.comp, u_miss), each weighted by
 // w (1 - conf), i.e. the ratio estimator restricted to the missed share; where no ray of

@@ -94,13 +94,13 @@ uniform float u_vx_box_ramp;       // width in texels of the ramp across a texel
 // and the mean (cos^2 of the angle to the wall's normal per sample; the samples inside one
 // wall layer are perfectly correlated, not independent) let oblique cones through walls.
 // Energy audit (closed box, q0): the mean lost 13 % more of E than the max (0.73 -> 0.85).
-// VX_BOX 1 (param axis_box, sixth session): each face is read at its mip's texel centre along
+// VX_BOX 1 (param axis_box): each face is read at its mip's texel centre along
 // the face's own axis (linear across it), the two mips of a fractional lod each at its own
 // centre and blended. Along the direction a cone crosses a face the opacity is then a box of
 // the texel's width, which is what the step correction 1 - (1-a)^(s/w) assumes: a trilinear
 // tent of a one-voxel wall (opacity 1 at one point only) let e^-2 ~ 14 % of a cone through
 // it, more or less depending on where the wall lay in the texel and on the sample phase.
-// VX_BOX 2 (box_ramp > 0, seventh session): the box's edges are linear ramps box_ramp texels
+// VX_BOX 2 (box_ramp > 0): the box's edges are linear ramps box_ramp texels
 // wide, so the value is continuous in the sample's position; the hard box jumps when a sample
 // crosses a texel boundary as the receiver moves (q1 60 frames: largest step 1.37x -> 1.30x
 // Cycles', mean 0.95x -> 0.88x at 0.5).

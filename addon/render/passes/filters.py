@@ -174,11 +174,11 @@ class SVGFPass(_FilterPass):
               "temporal sigma); 0 = off (the paper)"),
         Param("pair_variance", 0, 0, 1, "luminance weight from the pair's variance (symmetric: keeps the energy of "
               "bright outliers); 0 = the centre's (the paper)"),
-        # edge_history 8 (tenth session): Cornell slow pan trail 1.59x -> 1.44x the still level (8 draws, paired
+        # edge_history 8 (against 0): Cornell slow pan trail 1.59x -> 1.44x the still level (8 draws, paired
         # -0.13 +- 0.02), every case's stability +0.01..0.09 (all < 2x), moving relMSE +5 %. docs/techniques/SVGF.md
         Param("edge_history", 8.0, 0.0, 1024.0, "history length cap at geometric-edge pixels (a 3x3 neighbour on "
               "another surface) while the reprojection moves: their coverage changes (0: off)"),
-        # light_history 2 (tenth session; a restart before): the moving sun's held relMSE 0.039 -> 0.019, flicker
+        # light_history 2 (against a restart): the moving sun's held relMSE 0.039 -> 0.019, flicker
         # 1.58x -> 0.92x Cycles', trail 2.63x -> 1.90x (16 paired draws); the price is a 2-frame lag while the
         # light moves (relMSE moving: median equal, mean +18 %). As TAA's. docs/techniques/SVGF.md
         LIGHT_HISTORY,
@@ -254,10 +254,10 @@ class TAAPass(_FilterPass):
         # 0.0239); the Cornell pan's grazing face (0.67 px/frame) keeps the normal test. docs/techniques/TAA.md
         Param("normal_motion", 0.5, 0.0, 100.0, "history_normal applies where the reprojection moves by more "
               "than this (pixels)"),
-        # turned_history + thin_neff (tenth session): a slow pan reveals a face edge-on, one pixel wide, whose
+        # turned_history + thin_neff: a slow pan reveals a face edge-on, one pixel wide, whose
         # history is the neighbouring wall's (the plane test passes near their common edge): cap that history
         # and give the young, thin face a wider same-surface input. Cornell pan at 0.22 px/frame, 16 paired
-        # draws: trail 1.78x -> 1.38x the still level; stability costs 1.65x -> 1.72x (sun-lit pan). TAA.md C10
+        # draws: trail 1.78x -> 1.38x the still level; stability costs 1.65x -> 1.72x (sun-lit pan).
         Param("turned_history", 1.0, 0.0, 1024.0, "history length cap where a move below normal_motion keeps "
               "history texels whose normal fails history_normal (0: off)"),
         Param("thin_neff", 6.0, 0.0, 25.0, "thin surfaces: where the 5x5 same-surface binomial has fewer effective "

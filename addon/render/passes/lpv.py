@@ -158,7 +158,7 @@ class LPVPass(Pass):
         Param("inject_scale", 1.0, 0.0, 1.0, "weight of the injected (unpropagated) light in the result"),
         Param("flux_normalize", True, doc="scale each propagated cell so the clamped SH lobe carries its own flux (no energy gain per step)"),
         Param("trilinear_injection", True, doc="splat each VPL over the 8 cells around it (in front of its surface, weights cut by the geometry volume: splat_blocking); False: the one cell containing it (a VPL moving with its light steps between cells)"),
-        Param("inject_offset", 1.0, 0.0, 2.0, "a VPL is injected at its position plus this many cells along its normal (0.5 before 2026-12-02: a surface's own light lit it at fine levels)"),
+        Param("inject_offset", 1.0, 0.0, 2.0, "a VPL is injected at its position plus this many cells along its normal (0.5 lets a surface's own light light it at fine levels)"),
         Param("splat_blocking", True, doc="the trilinear splat's weights through the geometry volume (False: it crosses thin walls sideways, two_rooms leak 0.0000 -> 0.0055 at 48 px)"),
         Param("soft_cascades", True, doc="a VPL's share in a cascade ramps over 2 cells at its border (False: in or out, a moving cascade pops)"),
         Param("geometry_rays", 0, 0, 4, "geometry volume from the scene's triangles too: N x N rays per staggered cell (0 = only the RSM and G-buffer surfels)"),
@@ -373,11 +373,11 @@ class LPVLookupPass(Pass):
     declared = (Res("lpv.raw", check="radiance"), Res("lpv.cascade", dtype="f2", check="radiance"))
     history_resets = frozenset()
     params = (Param("dampening", 0.0, 0.0, 1.0, "scale of light flowing away along the normal (self-illumination; q3: 0.25)"),
-              Param("normal_offset", 0.25, 0.0, 2.0, "lookup point offset along the normal, in cells of the cascade read (0.5 before 2026-12-02)"))
+              Param("normal_offset", 0.25, 0.0, 2.0, "lookup point offset along the normal, in cells of the cascade read"))
     # q3's grid (40) is the finest: a surface's own injected light sits nearest its lookup and
     # follows its direct light's change, the per-frame change 60 moving frames showed (1.004x
-    # Cycles' mean step with 0; 0.25 takes 0.052 off the first 20 poses, docs/techniques/LPV.md
-    # fourth session). q0-q2 keep 0 (they meet the stability bar without it; it darkens the
+    # Cycles' mean step with 0; 0.25 takes 0.052 off the first 20 poses, docs/techniques/LPV.md).
+    # q0-q2 keep 0 (they meet the stability bar without it; it darkens the
     # Cornell box's mean).
     quality_ladder = ({"dampening": 0.0}, {"dampening": 0.0}, {"dampening": 0.0}, {"dampening": 0.25})
 

@@ -286,7 +286,7 @@ def bind_pattern(prog, frame, gather):
     (rsm_common.glsl) and converges, while a moving view or light (each frame a new
     accumulation) keeps window 0: the pattern's structured error does not change from frame
     to frame. ``pattern_windows``: the frame's sample counter instead, so a moving view also
-    walks the windows and the temporal pass averages 8 of them; measured worse (60 moving
+    walks the windows and the temporal pass averages 8 of them; that flickers more (60 moving
     frames, q0: 1.24x Cycles' frame-to-frame change against 1.08x with window 0: the
     8-frame running mean leaves an eighth of each new window's error as flicker; before the
     temporal pass existed a new pattern every frame measured 5.3x)."""

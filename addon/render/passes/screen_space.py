@@ -294,7 +294,7 @@ MAX_REPLACED = 2
 class CompositePass(ScreenPass):
     """color += the technique's indirect light (see composite.comp for each mode).
 
-    SSR mode, miss fallback (issue 9 point 3): ``fallback`` names the resource holding the
+    SSR mode, miss fallback: ``fallback`` names the resource holding the
     glossy light (radiance already multiplied by the specular albedo, the units added to
     ``color``) that stands for the share ``1 - a`` of the lobe SSR did not find on screen;
     ``replaces`` names the glossy terms ``color`` already contains which SSR's result

@@ -252,15 +252,15 @@ CONE_PARAMS = (
           "still image over frames, but flickers under motion: 60-frame Cornell 1.4x Cycles' mean step)"),
     Param("axis_box", True, doc="read each directional face at its mip's texel centre along the face's own axis "
           "(a box, not a trilinear tent, along the direction a cone crosses it: a one-voxel wall stops a cone "
-          "wherever it lies in a texel; off = trilinear, as before the sixth session)"),
+          "wherever it lies in a texel; off = trilinear)"),
     Param("box_ramp", 0.5, 0.0, 1.0, "axis_box only: width (in texels) of a linear ramp across each texel "
           "boundary along the face's axis (0 = a hard box, whose value jumps when a cone sample crosses a "
-          "boundary as the camera or receiver moves; 1 = the trilinear tent). 0.5 (seventh session): q1 60-frame "
+          "boundary as the camera or receiver moves; 1 = the trilinear tent). 0.5 against 0: q1 60-frame "
           "largest step 1.37x -> 1.30x Cycles', mean 0.95x -> 0.88x (q0: largest 1.23x -> 1.46x, mean 0.93x -> "
           "0.87x); Cornell q2 one-bounce 0.925 -> 0.928"),
     Param("opaque_radiance", True, doc="a sample's radiance weights its three faces by d^2 x opacity (the faces "
           "that occlude it show it), not by d^2 alone: the black edge-on faces of a wall crossed obliquely "
-          "(edge_opacity) no longer dim its radiance (off = as before the sixth session)"),
+          "(edge_opacity) no longer dim its radiance (off = weighted by d^2 alone)"),
     Param("audit_radiance", 0.0, 0.0, 1e3, "energy audit (tests): > 0 = both sides of every voxelised surface "
           "show this radiance (no lights, no bounce) and GI_IndirectDiffuse holds E/pi (albedo 1); 0 = off"),
 )
@@ -431,8 +431,8 @@ class VoxelInjectPass(Pass):
         # run gathering one bounce more from the volume the previous run wrote (ping-pong
         # between this frame's volume and its @prev twin, whose content is not needed on a
         # reset; the last run writes this frame's). The first frame is then as converged as
-        # the F12 warm-up used to make it after as many frames, for the viewport and every
-        # path alike, and the pass needs no warm-up frames.
+        # as many warm-up frames would make it, for the viewport and every path alike, and the
+        # pass needs no warm-up frames.
         gathers = multi or world_lit
         runs = 1 if (prev is not None or not gathers) else max(1, int(self["reset_bounces"]))
         if not multi:

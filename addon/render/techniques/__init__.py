@@ -1,4 +1,4 @@
-"""Technique registry: one module per technique id (the ids of shared/TECHNIQUES.md).
+"""Technique registry: one module per technique id (one page each in docs/techniques/).
 
 A technique is a list of passes (a FrameGraph) plus what it is compared against. Add a
 technique by writing ``techniques/<id>.py`` with a ``Technique`` subclass decorated with

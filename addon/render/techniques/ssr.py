@@ -12,7 +12,7 @@ share and its glossy share near the camera direction; also the found hits' mean 
 image behind the mirror, where a hit was found) → ``ssr_composite``
 (``color += spec_albedo * found + (1 - a) * fallback - replaced``; replaced is DIRECT's
 shadowed world reflection ``aov.world_spec``; the fallback for the share ``1 - a`` not found on
-screen — misses, untrusted hits — is ``ssr.fallback``: with ``miss_trace`` (off by default)
+screen — misses, untrusted hits — is ``ssr.fallback``: with ``miss_trace`` (on at every level)
 ``ssr_trace`` traces the same rays again through the scene's BVH (second dispatch,
 ``ssr_miss.comp``: direct light at the hit with one shadow ray, the world's light on it with one
 visibility ray, the world where the ray escapes; ``miss_samples_moving`` of them while the camera
@@ -23,7 +23,9 @@ temporal pass) accumulates that fallback over frames — history reprojected by 
 point at the miss rays' mean distance ``ssr.miss_dist``, clamped to the current 3x3
 neighbourhood while the camera moves, 16 frames still / 4 moving; with ``miss_trace`` 0 it keeps
 no history and passes ``aov.world_spec`` through unchanged. Surfaces rougher than
-``max_roughness`` (no rays) and ``miss_trace`` 0 keep ``aov.world_spec``. ``ssr_passes`` lets
+``max_roughness`` are not marched on screen; with ``rough_trace`` (on at every level) their GGX
+ray is traced through the BVH like a miss, otherwise (and with ``miss_trace`` 0) they keep
+``aov.world_spec``. ``ssr_passes`` lets
 another technique pass its own fallback, which turns the miss trace off). Radiance at a hit is the
 direct-lit colour without emission (one bounce; emitters' glossy reflection is DIRECT's).
 All SSR passes provide INDIRECT_SPECULAR: the planner skips them, saying "no glossy
@@ -40,14 +42,14 @@ See docs/techniques/SSR.md.
 | bias | 0–1 | ray origin offset along the geometric normal (scene units) |
 | resolve_samples | 1–16 | neighbour rays reused per pixel |
 | scale | 0.25–1 | resolution scale of the trace |
-| miss_trace | 0/1 | trace the rays through the scene for the share not found on screen |
+| miss_trace | 0/1 | trace the rays through the scene for the share not found on screen (1 at every level) |
+| rough_trace | 0/1 | with miss_trace: surfaces rougher than max_roughness trace their GGX ray through the scene (1 at every level) |
 | miss_samples | 1–16 | light samples per miss-trace hit, camera still |
 | miss_samples_moving | 1–16 | the same while the camera moves (default 2: the fallback's history is short) |
 
-Quality ladder (steps, resolve, scale, miss_trace): 0 = 32, 4, 1, 0; 1 = 64, 6, 1, 0; 2 = 128, 8, 1, 0;
-3 = 256, 12, 1, 0 (miss_trace off by default: see docs/techniques/SSR.md, fifth to seventh sessions:
-under camera motion its one-frame error is 0.081 against the screen-only default's 0.067; of it, 0.061 is
-the screen part both share and 0.021 the fallback's own).
+Quality ladder (steps, resolve, scale, miss_trace, rough_trace): 0 = 32, 4, 1, 1, 1; 1 = 64, 6, 1, 1, 1;
+2 = 128, 8, 1, 1, 1; 3 = 256, 12, 1, 1, 1. With ``miss_trace`` 0 the share not found on screen keeps DIRECT's
+shadowed world reflection ``aov.world_spec``; see docs/techniques/SSR.md.
 """
 from __future__ import annotations
 
@@ -86,9 +88,9 @@ class SSRTracePass(ScreenPass):
     )
     # q0 traces at full resolution: at half resolution (measured, glossy_spheres 96 px) the
     # reflections of the curved spheres lost detail (relMSE 0.0274 vs 0.0229), for ~1 ms
-    # miss_trace and rough_trace on at every level (SSR.md, eighth session): F12 renders improve
-    # every column measured (sunlit_room q1 vs full 0.07582 off -> 0.07451, below before issue 9's
-    # 0.07466; glossy_spheres q1 vs one_bounce 0.0191 -> 0.0094), and under camera motion against
+    # miss_trace and rough_trace on at every level: F12 renders improve every column measured
+    # (sunlit_room q1 vs full 0.07582 off -> 0.07451; glossy_spheres q1 vs one_bounce
+    # 0.0191 -> 0.0094), and under camera motion against
     # Cycles (corridor frames 4-12) 0.2879 off -> 0.1652 with the trace
     quality_ladder = tuple({"steps": n, "scale": 1.0, "miss_trace": 1, "rough_trace": 1} for n in (32, 64, 128, 256))
     reads = (ALBEDO, NORMAL, POSITION, GEONORMAL, HIZ)
@@ -218,7 +220,7 @@ class SSRFallbackTemporalPass(TemporalPass):
     and it restarts when ``miss_trace`` is switched. It is built with ``f12_pass_through``: in an
     F12 render the session's accumulator takes the plain mean of the frames' fallbacks
     (glossy_spheres q1, 96 px, 16 frames, five seeds: relMSE vs one_bounce 0.0157 +- 0.0024 ->
-    0.0130 +- 0.0012; SSR.md, eighth session)."""
+    0.0130 +- 0.0012; SSR.md)."""
 
     def __init__(self, quality=None, *, trace: SSRTracePass, **kw):
         super().__init__(quality, **kw)

@@ -26,20 +26,18 @@ docs/techniques/VXGI.md.
 | specular, min_aperture | vxgi_trace | | the specular cone and its narrowest aperture |
 | mip | vxgi_debug | 0–8 | mip level shown by GI_VXGI_Voxels |
 
-Registered like every technique since its lighting accuracy met the issue at q0/q1 (40 px, a
-sample's opacity the largest of its three directional faces', edge opacity 0.1, footprint cap
-0.35): Cornell mean 0.893/0.892 of Cycles' full (+-15 %), sun-lit room relMSE 0.067/0.032
-against DIRECT's 0.108/0.080. Sixth session (axis_box, opaque_radiance): Cornell mean
-q0-q3 within +-15 % at three grid placements (q2 0.904, q3 0.907 at the default grid; before
-0.816/0.813), at the cost of a larger thin-wall leak (q0 0.016 -> 0.023) and q1 flicker
-(largest step 1.21x -> 1.37x Cycles'; seventh session, box_ramp 0.5: 1.30x, but q0 1.23x -> 1.46x; leak 0.0205), see the page.
-Eighth session: the q0 1.46x was the fine cascade's 4-voxel snap shifting its mips 3+; aligned_mips (vxgi_voxelize,
-on) reads a moving cascade at mips 0-2 only. The remaining largest steps (q1-q3, step 16) sit on G-buffer edges. Energy audit
+Accuracy (64 px, Cycles full, 4 frames): Cornell mean 0.97 / 1.01 / 0.91 / 0.87 of Cycles' at
+q0-q3, relMSE 0.062 / 0.060 / 0.048 / 0.044 (DIRECT 0.278); sun-lit room relMSE 0.081 / 0.038 /
+0.024 / 0.024 (DIRECT 0.084). axis_box and opaque_radiance keep walls opaque and bright at the
+cost of a small thin-wall leak; box_ramp 0.5 keeps cone samples continuous under motion;
+aligned_mips reads a moving cascade at mips 0-2 only, so its 4-voxel snap does not shift the
+coarser mips. The largest frame-to-frame steps left sit on G-buffer edges. Energy audit
 (closed-box furnace, ideal 1): 0.69 at the defaults, 0.87 with edge opacity 0
 (docs/techniques/VXGI.md).
 
-Ninth session (many lights): a reset frame computes the direct light once (its later bounce runs load
-it), and the injection culls lights per voxel with DIRECT's ranges (many_lights q0: 6.4 -> 2.0 s per frame).
+Many lights: a reset frame computes the direct light once (its later bounce runs load it), and
+the injection culls lights per voxel with DIRECT's ranges (many_lights q0: 2.0 s per frame
+instead of 6.4).
 
 Quality ladder (voxels per side of each of 2 cascades; bounce iterations within the frame after
 a history reset, ``reset_bounces``): 0 = 32³ (6); 1 = 48³ (6); 2 = 64³ (8); 3 = 96³ (8). No
