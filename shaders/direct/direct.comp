@@ -1,7 +1,7 @@
 // direct.comp — DIRECT: direct lighting from every light type and emissive meshes, with
 // shadow-map visibility, emission, and the world as background only (no ambient).
-// Diffuse: exact (point/sphere/sun cosine law; polygon irradiance for area lights and
-// emissive triangles). Glossy: Monte Carlo with multiple importance sampling (light
+// Diffuse: exact (the lights' irradiance, lib/lights.glsl light_irradiance: cosine law for
+// point/sphere/sun, polygon irradiance for area lights and emissive triangles). Glossy: Monte Carlo with multiple importance sampling (light
 // sampling + GGX visible-normal sampling, power heuristic), converging over frames.
 // The world: background, and a light like any other (as in Cycles' "direct" reference): its
 // irradiance at the normal (lib/world.glsl: exact for a uniform world, order-2 SH for a map)
@@ -101,97 +101,34 @@ vec3 diffuse_brdf(Surface s, vec3 N, vec3 V) {
     return (1.0 - s.metallic) * s.base_color * INV_PI * layer;
 }
 
-vec3 shade_light(int li, Surface s, vec3 P, vec3 N, vec3 Ng, vec3 V, inout Rng rng) {
+// Unshadowed light of light li at the shading point. Delta lights: the BSDF in their one
+// direction. The others: diffuse from their exact irradiance (light_irradiance), glossy by
+// u_glossy_samples pairs of a light sample and a visible-normal sample, MIS'd by the power
+// heuristic where a BSDF ray can hit the light (light_has_shape), else (mesh lights) light
+// samples alone with weight 1.
+vec3 shade_light(int li, Surface s, vec3 P, vec3 N, vec3 V, inout Rng rng) {
     Light L = lights[li];
-    int type = int(L.pos_type.w + 0.5);
-    vec3 result = vec3(0.0);
-    bool has_glossy = (s.metallic > 0.0 || s.f0 > 0.0);
-    if (type == LIGHT_POINT || type == LIGHT_SPOT) {
-        vec3 d = L.pos_type.xyz - P;
-        float dist2 = dot(d, d);
-        float dist = sqrt(dist2);
-        vec3 wi = d / dist;
-        vec3 I = L.color.rgb;
-        if (type == LIGHT_SPOT) I *= spot_attenuation(L, -wi);
-        if (max3(I) <= 0.0) return vec3(0.0);
-        float r = L.dir_radius.w;
-        float NoL = dot(N, wi);
-        if (r <= 0.0 || dist <= r * 1.0001) {
-            BsdfEval e = eval_principled(s, N, V, wi);
-            return I * (e.diffuse + e.glossy) / dist2;
-        }
-        // sphere light: diffuse by the cosine law (exact above the horizon)
-        result += I * diffuse_brdf(s, N, V) * max(NoL, 0.0) / dist2;
-        if (has_glossy) {
-            for (int k = 0; k < u_glossy_samples; ++k) {
-                vec4 u = rng_next4(rng);
+    if (light_is_delta(L)) {
+        LightSample ls = sample_light(L, P, vec2(0.0), 0.0);
+        BsdfEval e = eval_principled(s, N, V, ls.dir);
+        return ls.Li * (e.diffuse + e.glossy);
+    }
+    vec3 result = diffuse_brdf(s, N, V) * light_irradiance(L, P, N, u_mesh_exact_max, rng);
+    if (s.metallic > 0.0 || s.f0 > 0.0) {
+        bool mis = light_has_shape(L);
+        for (int k = 0; k < u_glossy_samples; ++k) {
+            vec4 u = rng_next4(rng);
+            if (mis) {
                 result += glossy_light_sample(L, s, P, N, V, u.xyz);
                 result += glossy_bsdf_sample(L, s, P, N, V, u.zw);
-            }
-        }
-        return result;
-    }
-    if (type == LIGHT_SUN) {
-        vec3 wi = -L.dir_radius.xyz;
-        vec3 E = L.color.rgb;
-        float half_angle = L.dir_radius.w;
-        if (half_angle < 1e-4) {
-            BsdfEval e = eval_principled(s, N, V, wi);
-            return E * (e.diffuse + e.glossy);
-        }
-        result += E * diffuse_brdf(s, N, V) * max(dot(N, wi), 0.0);
-        if (has_glossy) {
-            for (int k = 0; k < u_glossy_samples; ++k) {
-                vec4 u = rng_next4(rng);
-                result += glossy_light_sample(L, s, P, N, V, u.xyz);
-                result += glossy_bsdf_sample(L, s, P, N, V, u.zw);
-            }
-        }
-        return result;
-    }
-    if (type == LIGHT_AREA) {
-        vec3 Le = L.color.rgb;
-        result += Le * diffuse_brdf(s, N, V) * area_light_irradiance_factor(L, P, N);
-        if (has_glossy) {
-            for (int k = 0; k < u_glossy_samples; ++k) {
-                vec4 u = rng_next4(rng);
-                result += glossy_light_sample(L, s, P, N, V, u.xyz);
-                result += glossy_bsdf_sample(L, s, P, N, V, u.zw);
-            }
-        }
-        return result;
-    }
-    if (type == LIGHT_MESH) {
-        int first = int(L.axis_w.x + 0.5);
-        int count = int(L.axis_w.y + 0.5);
-        vec3 fd = diffuse_brdf(s, N, V);
-        if (count <= u_mesh_exact_max) {
-            for (int i = first; i < first + count; ++i) {
-                Emitter e = emitters[i];
-                result += e.radiance.rgb * fd * triangle_irradiance_factor(e.p0.xyz, e.p1.xyz, e.p2.xyz, P, N);
-            }
-        } else {
-            const int K = 8;
-            for (int k = 0; k < K; ++k) {
-                float prob;
-                int i = pick_emitter(L, rng_next(rng), prob);
-                Emitter e = emitters[i];
-                float f = triangle_irradiance_factor(e.p0.xyz, e.p1.xyz, e.p2.xyz, P, N);
-                result += e.radiance.rgb * fd * f / (prob * float(K));
-            }
-        }
-        if (has_glossy) {
-            for (int k = 0; k < u_glossy_samples; ++k) {
-                // light sampling only (no BSDF branch for meshes): weight 1
-                vec4 u = rng_next4(rng);
+            } else {
                 LightSample ls = sample_light(L, P, u.xy, u.z);
                 if (ls.pdf > 0.0)
                     result += ls.Li * glossy_fcos(s, N, V, ls.dir) / (ls.pdf * float(u_glossy_samples));
             }
         }
-        return result;
     }
-    return vec3(0.0);
+    return result;
 }
 
 #ifdef DIRECT_RT
@@ -261,7 +198,7 @@ void main() {
 #endif
     for (int k = 0; k < listed; ++k) {
         int i = tile_lights[base + 1 + k];
-        vec3 c = shade_light(i, s, P, N, Ng, V, rng);
+        vec3 c = shade_light(i, s, P, N, V, rng);
         if (max3(c) <= 0.0) continue;
 #ifdef DIRECT_RT
         Light L = lights[i];
@@ -295,7 +232,7 @@ void main() {
         float sel;
         int j = select_light(rng_next(rng), sel);
         if (sel <= 0.0 || tile_listed(base, listed, j)) continue;
-        vec3 c = shade_light(j, s, P, N, Ng, V, rng);
+        vec3 c = shade_light(j, s, P, N, V, rng);
         if (max3(c) <= 0.0) continue;
         Light L = lights[j];
         float vis = L.axis_w.w < 0.5 ? 1.0

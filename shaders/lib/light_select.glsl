@@ -2,7 +2,8 @@
 // importance at the shading point, a power-only table for callers without one, and a BVH over
 // the lights a BSDF ray can hit. Host side: addon/render/light_tree.py (layout, float64 twin of
 // every function here) and rt_scene.light_table (the RtLightSelect buffer these read).
-// Included by lib/scene_rt.glsl after its RtLightSelect buffer; needs lib/bvh.glsl (rt_box).
+// Included by lib/scene_rt.glsl after its RtLightSelect buffer; needs lib/bvh.glsl (rt_box) and
+// lib/lights.glsl (LIGHT_CDF_SEARCH, the one binary search over power tables).
 //
 //   int i = select_light(u, p, n, prob);   // light tree (suns: by power, outside the tree)
 //   float pr = light_pdf(i, p, n);         // the same probability, for MIS
@@ -25,16 +26,14 @@ vec3 lt_vec3(int i) { return vec3(rt_light_select[i], rt_light_select[i + 1], rt
 
 // Power-only selection: the table's cdf over every light (suns: irradiance x the scene's
 // cross-section).
+#define LT_TABLE_CDF(k) rt_light_select[k]
 int select_light(float u, out float prob) {
-    int n = u_light_count;
-    int lo = 0, hi = n - 1;
-    while (lo < hi) {
-        int mid = (lo + hi) / 2;
-        if (rt_light_select[mid] <= u) lo = mid + 1; else hi = mid;
-    }
-    prob = rt_light_select[n + lo];
+    int lo;
+    LIGHT_CDF_SEARCH(LT_TABLE_CDF, u_light_count, u, lo)
+    prob = rt_light_select[u_light_count + lo];
     return lo;
 }
+#undef LT_TABLE_CDF
 
 float light_pdf(int i) { return rt_light_select[u_light_count + i]; }
 
@@ -134,11 +133,10 @@ int select_light(float u, vec3 p, vec3 n, out float prob) {
     int suns = int(rt_light_select[h + 4]);
     int ns = int(rt_light_select[h + 5]);
     u = (u - tree_prob) / max(1.0 - tree_prob, 1e-30);
-    int lo = 0, hi = ns - 1;
-    while (lo < hi) {
-        int mid = (lo + hi) / 2;
-        if (rt_light_select[suns + ns + mid] <= u) lo = mid + 1; else hi = mid;
-    }
+#define LT_SUN_CDF(k) rt_light_select[suns + ns + (k)]
+    int lo;
+    LIGHT_CDF_SEARCH(LT_SUN_CDF, ns, u, lo)
+#undef LT_SUN_CDF
     int i = int(rt_light_select[suns + lo] + 0.5);
     prob = light_pdf(i);
     return i;

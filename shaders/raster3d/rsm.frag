@@ -37,7 +37,6 @@ void main() {
     int mid = (v_material >= 0 && v_material < u_material_count) ? v_material : u_material_count;
     Material m = materials[mid];
     Light L = lights[u_light];
-    int type = int(L.pos_type.w + 0.5);
     vec3 toL = u_ortho == 1 ? -u_fwd : normalize(u_origin - v_world);
     vec3 n = normalize(v_normal);
     if (dot(n, toL) < 0.0) n = -n;
@@ -57,10 +56,7 @@ void main() {
         vec3 w = normalize(v_world - u_origin);
         float ca = max(dot(w, u_fwd), 1e-4);
         float domega = u_texel * u_texel * ca * ca * ca;
-        vec3 I = L.color.rgb;
-        if (type == LIGHT_SPOT) I *= spot_attenuation(L, w);
-        if (type == LIGHT_AREA) I = L.color.rgb * L.axis_v.w * max(dot(w, L.dir_radius.xyz), 0.0);
-        flux = rho * I * domega;
+        flux = rho * light_intensity(L, w) * domega;
         vec3 dv = v_world - u_origin;
         area = domega * dot(dv, dv) / max(NoL, 0.05);
     }

@@ -150,8 +150,6 @@ Reservoir fetch(ivec2 q) {
     return r;
 }
 
-bool is_direction(Sample x) { return x.li < 0 || int(lights[x.li].pos_type.w + 0.5) == LIGHT_SUN; }
-
 // Contribution c_x(y) (unshadowed) at a shading point, with the shadow ray it needs.
 // G = the geometry factor in it (1 / d^2 for delta points, 1 for directions).
 vec3 contrib_g(Shading sh, Sample x, out vec3 dir, out float dist, out bool casts, out float G) {
@@ -162,33 +160,9 @@ vec3 contrib_g(Shading sh, Sample x, out vec3 dir, out float dist, out bool cast
         dir = x.y; dist = T_INF; casts = true;
     } else {
         Light L = lights[x.li];
-        int type = int(L.pos_type.w + 0.5);
         casts = L.axis_w.w > 0.5;
-        if (type == LIGHT_SUN) {
-            dir = x.y; dist = T_INF;
-        } else {
-            vec3 d = x.y - sh.p;
-            dist = length(d);
-            if (dist <= 1e-9) return vec3(0.0);
-            dir = d / dist;
-            float inv_d2 = 1.0 / (dist * dist);
-            if (type == LIGHT_POINT || type == LIGHT_SPOT) {
-                if (type == LIGHT_SPOT) Le *= spot_attenuation(L, normalize(sh.p - L.pos_type.xyz));
-                if (L.dir_radius.w > 0.0) {
-                    float cy = dot(x.n, -dir);
-                    if (cy <= 0.0) return vec3(0.0);  // the far side of the sphere
-                    G = cy * inv_d2;
-                } else {
-                    G = inv_d2;                          // delta point light: intensity / d^2
-                }
-            } else if (type == LIGHT_AREA) {
-                float cy = dot(x.n, -dir);
-                if (cy <= 0.0) return vec3(0.0);         // behind the emitting face
-                G = cy * inv_d2;
-            } else {
-                G = abs(dot(x.n, dir)) * inv_d2;        // emissive triangles: two-sided
-            }
-        }
+        Le *= light_eval_point(L, sh.p, x.y, x.n, dir, dist, G);
+        if (max3(Le) <= 0.0) return vec3(0.0);
     }
     if (dot(dir, sh.Ng) <= 0.0) return vec3(0.0);
     BsdfEval fe = eval_principled(sh.s, sh.N, sh.V, dir);
@@ -260,37 +234,23 @@ float sphere_area_mix() { return u_bias_mode == 0 ? SPHERE_AREA_MIX : 0.0; }
 float restir_light_prob(int li, Shading sh) { return light_pdf(li) * (1.0 - u_world_select); }
 
 // Solid-angle pdf with which light sampling (select_light + sample_light) produces sample x
-// from sh (delta lights: the selection probability).
-float light_strategy_pdf(Shading sh, Sample x, float mesh_tri_pdf) {
+// from sh (delta lights: the selection probability). Emissive triangles: 0 (their pdf needs the
+// triangle; bsdf_candidate computes it where it finds one).
+float light_strategy_pdf(Shading sh, Sample x) {
     if (x.li < 0) return u_world_select > 0.0 ? u_world_select * world_pdf(x.y) : 0.0;  // the world map
     Light L = lights[x.li];
-    int type = int(L.pos_type.w + 0.5);
     float sel = restir_light_prob(x.li, sh);
-    if (type == LIGHT_SUN) return L.dir_radius.w <= 1e-6 ? sel : sel * cone_pdf(cos(L.dir_radius.w));
-    if (type == LIGHT_POINT || type == LIGHT_SPOT) {
-        float r = L.dir_radius.w;
-        if (r <= 0.0) return sel;
-        vec3 toc = L.pos_type.xyz - sh.p;
-        float d2 = dot(toc, toc);
-        if (d2 <= r * r) return 0.0;
-        float pc = cone_pdf(sqrt(max(0.0, 1.0 - r * r / d2)));
-        float a = sphere_area_mix();
-        if (a <= 0.0) return sel * pc;
-        vec3 dy = sh.p - x.y;
-        float cy = dot(x.n, normalize(dy));
-        float pa = cy > 0.0 ? dot(dy, dy) / (cy * 4.0 * PI * r * r) : 0.0;  // area-uniform, as solid angle
-        return sel * ((1.0 - a) * pc + a * pa);
-    }
-    if (type == LIGHT_AREA) return sel * area_to_solid_angle_pdf(sh.p, x.y, x.n, max(L.axis_v.w, 1e-12));
-    return sel * mesh_tri_pdf;
+    float pl = light_sample_pdf(L, sh.p, x.y, x.n);
+    float a = light_is_sphere(L) ? sphere_area_mix() : 0.0;
+    if (a <= 0.0 || pl <= 0.0) return sel * pl;
+    float r = L.dir_radius.w;
+    vec3 dy = sh.p - x.y;
+    float cy = dot(x.n, normalize(dy));
+    float pa = cy > 0.0 ? dot(dy, dy) / (cy * 4.0 * PI * r * r) : 0.0;  // area-uniform, as solid angle
+    return sel * ((1.0 - a) * pl + a * pa);
 }
 
-bool is_delta(Sample x) {
-    if (x.li < 0) return false;
-    Light L = lights[x.li];
-    int type = int(L.pos_type.w + 0.5);
-    return (type == LIGHT_POINT || type == LIGHT_SPOT || type == LIGHT_SUN) && L.dir_radius.w <= 1e-6;
-}
+bool is_delta(Sample x) { return x.li >= 0 && light_is_delta(lights[x.li]); }
 
 // Can a BSDF candidate produce x? Emissive triangles (found through the BVH) always; area,
 // sphere and sun-disk lights only when u_bsdf_analytic (the host turns it off above
@@ -298,8 +258,8 @@ bool is_delta(Sample x) {
 // strategy that cannot produce a sample has pdf 0 for it, so the MIS'd weights stay unbiased.
 bool bsdf_finds(Sample x, bool analytic) {
     if (x.li < 0) return true;
-    int type = int(lights[x.li].pos_type.w + 0.5);
-    return type == LIGHT_MESH || (analytic && !is_delta(x));
+    Light L = lights[x.li];
+    return light_has_shape(L) ? analytic : !light_is_delta(L);  // shapeless, not delta: triangles
 }
 
 // Glossy pixels (roughness < u_glossy_rough, specular lobe >= half the sampling weight) get
@@ -329,45 +289,22 @@ bool light_candidate(Shading sh, vec4 u, out Sample x, out float pl) {
     int li = select_light((u.x - u_world_select) / (1.0 - u_world_select), sel);
     sel *= 1.0 - u_world_select;
     Light L = lights[li];
-    int type = int(L.pos_type.w + 0.5);
-    float amix = (type == LIGHT_POINT || type == LIGHT_SPOT) && L.dir_radius.w > 0.0 ? sphere_area_mix() : 0.0;
+    float amix = light_is_sphere(L) ? sphere_area_mix() : 0.0;
     if (amix > 0.0 && u.w < amix) {  // defensive area-uniform point on a sphere light (u.w unused by spheres)
         float r = L.dir_radius.w;
         vec3 toc = L.pos_type.xyz - sh.p;
         if (dot(toc, toc) <= r * r || sel <= 0.0) return false;
         x.li = li;
-        x.n = sample_uniform_sphere(u.yz);
-        x.y = L.pos_type.xyz + r * x.n;
-        x.Le = L.color.rgb / (PI * r * r);
-        pl = light_strategy_pdf(sh, x, 0.0);  // 0 on the far side: contrib is 0 there too
+        x.y = L.pos_type.xyz + r * sample_uniform_sphere(u.yz);
+        light_shape_point(L, x.y, x.n, x.Le);
+        pl = light_strategy_pdf(sh, x);  // 0 on the far side: contrib is 0 there too
         return pl > 0.0;
     }
     LightSample ls = sample_light(L, sh.p, u.yz, u.w);
     if (ls.pdf <= 0.0 || sel <= 0.0) return false;
     x.li = li;
-    pl = sel * ls.pdf;
-    if (type == LIGHT_SUN) {
-        x.y = ls.dir; x.Le = ls.Li;
-    } else if (type == LIGHT_POINT || type == LIGHT_SPOT) {
-        float r = L.dir_radius.w;
-        if (r <= 0.0) {
-            x.y = L.pos_type.xyz; x.Le = L.color.rgb;
-        } else {
-            x.y = sh.p + ls.dir * ls.dist;
-            x.n = normalize(x.y - L.pos_type.xyz);
-            x.Le = L.color.rgb / (PI * r * r);
-            if (amix > 0.0) pl = light_strategy_pdf(sh, x, 0.0);  // the mixture's pdf
-        }
-    } else if (type == LIGHT_AREA) {
-        x.y = sh.p + ls.dir * ls.dist; x.n = L.dir_radius.xyz; x.Le = ls.Li;
-    } else {  // mesh light: the triangle sample_light chose (same u.w)
-        float tp;
-        int e = pick_emitter(L, u.w, tp);
-        Emitter em = emitters[e];
-        x.y = sh.p + ls.dir * ls.dist;
-        x.n = normalize(cross(em.p1.xyz - em.p0.xyz, em.p2.xyz - em.p0.xyz));
-        x.Le = em.radiance.rgb;
-    }
+    x.y = ls.y; x.n = ls.ny; x.Le = ls.Le;
+    pl = amix > 0.0 ? light_strategy_pdf(sh, x) : sel * ls.pdf;  // spheres: the mixture's pdf
     return true;
 }
 
@@ -384,27 +321,16 @@ bool bsdf_candidate(Shading sh, vec3 u, bool analytic, out Sample x, out float p
     int best = -1;
     // the nearest area/sphere light the ray crosses: through the light BVH (lib/light_select.glsl)
 #define RESTIR_VISIT_NEAREST(i) {                                                              \
-        Light L_ = lights[i];                                                                   \
-        int type_ = int(L_.pos_type.w + 0.5);                                                   \
-        float t_ = -1.0;                                                                        \
-        if (type_ == LIGHT_AREA) t_ = intersect_area_light(L_, sh.p, d);                        \
-        else if ((type_ == LIGHT_POINT || type_ == LIGHT_SPOT) && L_.dir_radius.w > 0.0) {      \
-            vec3 toc_ = L_.pos_type.xyz - sh.p;                                                 \
-            if (dot(toc_, toc_) > L_.dir_radius.w * L_.dir_radius.w)                            \
-                t_ = intersect_sphere(L_.pos_type.xyz, L_.dir_radius.w, sh.p, d);               \
-        }                                                                                       \
+        float t_ = light_ray_distance(lights[i], sh.p, d);                                     \
         if (t_ > 0.0 && t_ < tbest) { tbest = t_; best = i; }                                   \
     }
     if (analytic) LIGHT_BVH_TRAVERSE(sh.p, d, 0.0, tbest, RESTIR_VISIT_NEAREST)
 #undef RESTIR_VISIT_NEAREST
     if (best >= 0) {
-        Light L = lights[best];
-        int type = int(L.pos_type.w + 0.5);
         x.li = best;
         x.y = sh.p + d * tbest;
-        if (type == LIGHT_AREA) { x.n = L.dir_radius.xyz; x.Le = L.color.rgb; }
-        else { x.n = normalize(x.y - L.pos_type.xyz); x.Le = L.color.rgb / (PI * L.dir_radius.w * L.dir_radius.w); }
-        pl = light_strategy_pdf(sh, x, 0.0);
+        light_shape_point(lights[best], x.y, x.n, x.Le);
+        pl = light_strategy_pdf(sh, x);
         return true;
     }
     if (hit) {
@@ -426,19 +352,18 @@ bool bsdf_candidate(Shading sh, vec3 u, bool analytic, out Sample x, out float p
     int ns = u_light_tree >= 0 ? int(rt_light_select[u_light_tree + 5]) : 0;
     for (int k = 0; k < ns && analytic; ++k) {  // a miss: sun disks (the suns' list), then the world
         int i = int(rt_light_select[suns + k] + 0.5);
-        Light L = lights[i];
-        if (int(L.pos_type.w + 0.5) != LIGHT_SUN || L.dir_radius.w <= 1e-6) continue;
-        if (dot(d, -L.dir_radius.xyz) >= cos(L.dir_radius.w)) {
-            float sa = sin(L.dir_radius.w);
-            x.li = i; x.y = d; x.Le = L.color.rgb / (PI * sa * sa);
-            pl = light_strategy_pdf(sh, x, 0.0);
+        vec3 Le;
+        float pdf;
+        if (light_ray_hit(lights[i], sh.p, d, 0.0, T_INF, Le, pdf)) {
+            x.li = i; x.y = d; x.Le = Le;
+            pl = light_strategy_pdf(sh, x);
             return true;
         }
     }
     x.Le = world_radiance(d);
     if (max3(x.Le) <= 0.0) return false;
     x.li = -1; x.y = d;
-    pl = light_strategy_pdf(sh, x, 0.0);  // a world map is also light-sampled
+    pl = light_strategy_pdf(sh, x);  // a world map is also light-sampled
     return true;
 }
 

@@ -5,9 +5,9 @@
 // its own), clears them for the next frame, and writes level 0
 // of the six directional radiance volumes (vxgi/common.glsl): the outgoing radiance of the
 // surface side facing each direction, L = rho/pi * E, with E in Cycles' units:
-//  * direct light of every light (point/spot I cos/d^2 with the spot cone, sun E cos,
-//    area and mesh lights by exact polygon irradiance) on each side of the voxel's
-//    surface, shadowed by the shadow maps: the shadow atlas (lib/shadows.glsl: cube maps
+//  * direct light of every light (lib/lights.glsl light_irradiance: point/spot I cos/d^2 with
+//    the spot cone, sun E cos, area and mesh lights by exact polygon irradiance) on each side
+//    of the voxel's surface, shadowed by the shadow maps: the shadow atlas (lib/shadows.glsl: cube maps
 //    of point/spot/area/mesh lights) and, for suns, whose atlas cascades only cover the
 //    camera's frustum, the light's RSM view over the whole scene (passes/rsm.py);
 //  * optional multi-bounce: six diffuse cones per side through last frame's volume
@@ -120,57 +120,16 @@ float visibility(int li, Light L, vec3 p, vec3 nf, float vs) {
     return light_visibility(L, ps, nf, nf);
 }
 
-// Irradiance of light li on the two sides (+n: Ep, -n: Em) of the surface at p.
-void light_irradiance(int li, vec3 p, vec3 n, float vs, inout Rng rng, inout vec3 Ep, inout vec3 Em) {
+// Irradiance of light li on the two sides (+n: Ep, -n: Em) of the surface at p: the light's
+// unshadowed irradiance on each side (lib/lights.glsl; both sides see the same triangles of a
+// sampled mesh light), shadowed for that side.
+void light_irradiance_sides(int li, vec3 p, vec3 n, float vs, inout Rng rng, inout vec3 Ep, inout vec3 Em) {
     Light L = lights[li];
-    int type = int(L.pos_type.w + 0.5);
-    if (type == LIGHT_POINT || type == LIGHT_SPOT) {
-        vec3 d = L.pos_type.xyz - p;
-        float d2 = max(dot(d, d), 1e-8);
-        vec3 wi = d * inversesqrt(d2);
-        vec3 I = L.color.rgb;
-        if (type == LIGHT_SPOT) I *= spot_attenuation(L, -wi);
-        float c = dot(n, wi);
-        if (max3(I) <= 0.0 || abs(c) < 1e-6) return;
-        vec3 nf = c > 0.0 ? n : -n;
-        vec3 E = I * abs(c) / d2 * visibility(li, L, p, nf, vs);
-        if (c > 0.0) Ep += E; else Em += E;
-    } else if (type == LIGHT_SUN) {
-        vec3 wi = -L.dir_radius.xyz;
-        float c = dot(n, wi);
-        if (abs(c) < 1e-6) return;
-        vec3 nf = c > 0.0 ? n : -n;
-        vec3 E = L.color.rgb * abs(c) * visibility(li, L, p, nf, vs);
-        if (c > 0.0) Ep += E; else Em += E;
-    } else if (type == LIGHT_AREA) {
-        float fp = area_light_irradiance_factor(L, p, n);
-        float fm = area_light_irradiance_factor(L, p, -n);
-        if (fp > 0.0) Ep += L.color.rgb * fp * visibility(li, L, p, n, vs);
-        if (fm > 0.0) Em += L.color.rgb * fm * visibility(li, L, p, -n, vs);
-    } else if (type == LIGHT_MESH) {
-        int first = int(L.axis_w.x + 0.5);
-        int count = int(L.axis_w.y + 0.5);
-        vec3 sp = vec3(0.0), sm = vec3(0.0);
-        if (count <= u_mesh_exact_max) {
-            for (int i = first; i < first + count; ++i) {
-                Emitter e = emitters[i];
-                sp += e.radiance.rgb * max(triangle_irradiance_factor(e.p0.xyz, e.p1.xyz, e.p2.xyz, p, n), 0.0);
-                sm += e.radiance.rgb * max(triangle_irradiance_factor(e.p0.xyz, e.p1.xyz, e.p2.xyz, p, -n), 0.0);
-            }
-        } else {
-            const int K = 8;
-            for (int k = 0; k < K; ++k) {
-                float prob;
-                int i = pick_emitter(L, rng_next4(rng).x, prob);
-                Emitter e = emitters[i];
-                float w = 1.0 / (max(prob, 1e-12) * float(K));
-                sp += e.radiance.rgb * max(triangle_irradiance_factor(e.p0.xyz, e.p1.xyz, e.p2.xyz, p, n), 0.0) * w;
-                sm += e.radiance.rgb * max(triangle_irradiance_factor(e.p0.xyz, e.p1.xyz, e.p2.xyz, p, -n), 0.0) * w;
-            }
-        }
-        if (max3(sp) > 0.0) Ep += sp * visibility(li, L, p, n, vs);
-        if (max3(sm) > 0.0) Em += sm * visibility(li, L, p, -n, vs);
-    }
+    Rng rng_m = rng;
+    vec3 sp = light_irradiance(L, p, n, u_mesh_exact_max, rng);
+    vec3 sm = light_irradiance(L, p, -n, u_mesh_exact_max, rng_m);
+    if (max3(sp) > 0.0) Ep += sp * visibility(li, L, p, n, vs);
+    if (max3(sm) > 0.0) Em += sm * visibility(li, L, p, -n, vs);
 }
 
 // Does voxel centre c lie in light li's range (or does li reach everywhere)?
@@ -180,17 +139,16 @@ bool vx_listed(int li, vec3 c) {
     return r.w < 0.0 || dot(d, d) <= r.w * r.w;
 }
 
-// A light with a range, by power (the table's cdf; the binary search of scene_rt.glsl's select_light)
+// A light with a range, by power: the table's cdf, searched as every power table is
+// (LIGHT_CDF_SEARCH, lib/lights.glsl).
+#define VX_CULL_CDF(k) vx_cull[4 * u_light_count + (k)]
 int vx_select_light(float u, out float prob) {
-    int n = u_light_count;
-    int lo = 0, hi = n - 1;
-    while (lo < hi) {
-        int mid = (lo + hi) / 2;
-        if (vx_cull[4 * n + mid] <= u) lo = mid + 1; else hi = mid;
-    }
-    prob = vx_cull[5 * n + lo];
-    return lo;
+    int i;
+    LIGHT_CDF_SEARCH(VX_CULL_CDF, u_light_count, u, i)
+    prob = vx_cull[5 * u_light_count + i];
+    return i;
 }
+#undef VX_CULL_CDF
 
 // Direct irradiance on both sides of the bucket's surface (p, n) in the voxel centred at c:
 // every light (u_cull = 0), or the lights listed for c plus u_cull_samples power samples of
@@ -214,7 +172,7 @@ void direct_irradiance(vec3 c, vec3 p, vec3 n, float vs, inout Rng rng, inout ve
         }
         for (int k = 0; k < m; ++k) {
             vec3 sp = vec3(0.0), sm = vec3(0.0);  // (x 1.0 for a listed light: the sum is unchanged bit for bit)
-            light_irradiance(idx[k], p, n, vs, rng, sp, sm);
+            light_irradiance_sides(idx[k], p, n, vs, rng, sp, sm);
             Ep += sp * w[k];
             Em += sm * w[k];
         }
