@@ -5,6 +5,9 @@
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/screen.glsl"
+#include "lib/sampling.glsl"
+#include "lib/brdf.glsl"
+#include "lib/albedo.glsl"
 #include "filters/common.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -12,6 +15,8 @@ layout(binding = 0, rgba32f) uniform writeonly image2D o_out;
 uniform sampler2D u_in;
 uniform sampler2D u_gb_albedo;
 uniform sampler2D u_gb_position;
+uniform sampler2D u_gb_normal;
+uniform sampler2D u_gb_geonormal;
 uniform int u_demod;
 
 void main() {
@@ -22,7 +27,8 @@ void main() {
     vec3 c = sanitize(s.rgb);
     vec4 pos = texelFetch(u_gb_position, px, 0);
     if (pos.w >= 0.0) {
-        vec3 a = demod_albedo(texelFetch(u_gb_albedo, px, 0).rgb);
+        vec3 a = demod_albedo(texelFetch(u_gb_albedo, px, 0), texelFetch(u_gb_normal, px, 0),
+                              texelFetch(u_gb_geonormal, px, 0), pos, view_dir(pos.xyz));
         vec3 e = gb_emission(pos, px);
         c = u_demod == 1 ? max(c - e, vec3(0.0)) / a : c * a + e;
     }

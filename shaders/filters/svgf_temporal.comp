@@ -9,8 +9,12 @@
 // the variance handed to the à-trous is that of the integrated signal (samples' / len).
 // History taps that are not finite are rejected, so NaN in history is gone within a frame.
 #define USE_SCENE_BUFFERS
+#define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/screen.glsl"
+#include "lib/sampling.glsl"
+#include "lib/brdf.glsl"
+#include "lib/albedo.glsl"
 #include "filters/common.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
@@ -25,6 +29,7 @@ uniform sampler2D u_color;
 uniform sampler2D u_gb_albedo;
 uniform sampler2D u_gb_position;
 uniform sampler2D u_gb_normal;
+uniform sampler2D u_gb_geonormal;
 uniform sampler2D u_gb_motion;
 uniform sampler2D u_hist_illum;
 uniform sampler2D u_hist_moments;
@@ -50,7 +55,9 @@ bool geometric_edge(ivec2 px, ivec2 size, vec3 P, vec3 N) {
 vec3 cur_illum(ivec2 q) {
     vec3 c = sanitize(texelFetch(u_color, q, 0).rgb);
     vec3 e = gb_emission(texelFetch(u_gb_position, q, 0), q);  // emission bypasses demodulation
-    return max(c - e, vec3(0.0)) / demod_albedo(texelFetch(u_gb_albedo, q, 0).rgb);
+    vec4 pq = texelFetch(u_gb_position, q, 0);
+    return max(c - e, vec3(0.0)) / demod_albedo(texelFetch(u_gb_albedo, q, 0), texelFetch(u_gb_normal, q, 0),
+                                               texelFetch(u_gb_geonormal, q, 0), pq, view_dir(pq.xyz));
 }
 
 void main() {

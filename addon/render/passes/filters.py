@@ -33,7 +33,7 @@ from dataclasses import replace
 
 from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Param, Pass, Res
 from ..gpu_scene import set_uniform
-from .gbuffer import ALBEDO, EMISSION, MOTION, NORMAL, POSITION, GBufferPass
+from .gbuffer import ALBEDO, EMISSION, GEONORMAL, MOTION, NORMAL, POSITION, GBufferPass
 from .screen_space import Units, bind_frame
 
 COLOR = "color"
@@ -108,13 +108,16 @@ class _FilterPass(Pass):
         self._run(rc, prog)
         rc.ctx.memory_barrier(0x0008 | 0x0020)
 
-    def _modulate(self, rc, src, dst, demod: bool):
+    def _modulate(self, rc, frame, src, dst, demod: bool):
         res = rc.resources
         prog = rc.programs.compute("filters/modulate.comp")
+        bind_frame(rc, prog, frame)  # the camera: the albedo is the one seen from it
         units = Units(1)
         units.tex(prog, "u_in", res[src])
         units.tex(prog, "u_gb_albedo", res[ALBEDO])
         units.tex(prog, "u_gb_position", res[POSITION])
+        units.tex(prog, "u_gb_normal", res[NORMAL])
+        units.tex(prog, "u_gb_geonormal", res[GEONORMAL])
         units.tex(prog, "u_gb_emission", res[EMISSION])  # the emission that bypasses demodulation
         set_uniform(prog, "u_demod", 1 if demod else 0)
         res[dst].bind_to_image(0, read=False, write=True)
@@ -126,7 +129,7 @@ class AtrousPass(_FilterPass):
     """Edge-avoiding à-trous wavelet filter of ``color`` (no temporal state)."""
 
     name = "atrous"
-    reads = (COLOR, ALBEDO, NORMAL, POSITION, EMISSION)
+    reads = (COLOR, ALBEDO, NORMAL, GEONORMAL, POSITION, EMISSION)
     writes = (COLOR, "atrous.a", "atrous.b")
     declared = (Res(COLOR, check="radiance"), Res("atrous.a", check="radiance"), Res("atrous.b", check="radiance"))
     history_resets = frozenset()
@@ -139,18 +142,18 @@ class AtrousPass(_FilterPass):
     quality_ladder = ({"iterations": 3}, {"iterations": 4}, {"iterations": 5}, {"iterations": 6})
 
     def execute(self, rc, frame):
-        self._modulate(rc, COLOR, "atrous.a", demod=True)
+        self._modulate(rc, frame, COLOR, "atrous.a", demod=True)
         prog_src = "atrous.a"
         out = self._atrous(rc, frame, prog_src, "atrous.b", "atrous.a", self["iterations"], 0,
                            self["sigma_color"], self["sigma_normal"], self["sigma_position"], halve_sigma=True)
-        self._modulate(rc, out, COLOR, demod=False)
+        self._modulate(rc, frame, out, COLOR, demod=False)
 
 
 class SVGFPass(_FilterPass):
     """Spatiotemporal variance-guided filtering of ``color``."""
 
     name = "svgf"
-    reads = (COLOR, ALBEDO, NORMAL, POSITION, MOTION, EMISSION, "svgf.illum@prev", "svgf.moments@prev", "svgf.pos@prev",
+    reads = (COLOR, ALBEDO, NORMAL, GEONORMAL, POSITION, MOTION, EMISSION, "svgf.illum@prev", "svgf.moments@prev", "svgf.pos@prev",
              "svgf.nrm@prev")
     writes = (COLOR, "svgf.illum", "svgf.moments", "svgf.pos", "svgf.nrm", "svgf.a", "svgf.b", "svgf.dbg_var",
               "svgf.dbg_len")
@@ -192,7 +195,8 @@ class SVGFPass(_FilterPass):
         units = Units(1)
         for uni, name in (("u_color", COLOR), ("u_gb_albedo", ALBEDO), ("u_gb_position", POSITION),
                           ("u_gb_emission", EMISSION),
-                          ("u_gb_normal", NORMAL), ("u_gb_motion", MOTION), ("u_hist_illum", "svgf.illum@prev"),
+                          ("u_gb_normal", NORMAL), ("u_gb_geonormal", GEONORMAL), ("u_gb_motion", MOTION),
+                          ("u_hist_illum", "svgf.illum@prev"),
                           ("u_hist_moments", "svgf.moments@prev"), ("u_hist_pos", "svgf.pos@prev"),
                           ("u_hist_nrm", "svgf.nrm@prev")):
             units.tex(prog, uni, res[name])
@@ -212,7 +216,7 @@ class SVGFPass(_FilterPass):
                            self["sigma_normal"], self["sigma_depth"],
                            feedback="svgf.illum" if int(self["feedback"]) == 1 else None,
                            pair_var=int(self["pair_variance"]))
-        self._modulate(rc, out, COLOR, demod=False)
+        self._modulate(rc, frame, out, COLOR, demod=False)
 
 
 class TAAPass(_FilterPass):
