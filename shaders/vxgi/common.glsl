@@ -219,11 +219,20 @@ vec4 vx_cone(vec3 o, vec3 d, float tan_half, float t0, float t1, float step_scal
 // (Crassin; Godot's layout at 60 degrees: weights pi/4 and 3 pi/20). The weights are each
 // cone's cosine-weighted solid angle, Omega cos(theta), scaled so that they sum to pi: a
 // uniform radiance L gives E = pi L. `rot` turns the five around n (rotated every frame,
-// the pattern converges as frames accumulate). `world`: radiance added for the part of
-// each cone that escapes (1 - opacity); `bounce` scales what the cones gather from the
-// voxels (0: world light only). Returns E; `vis` = the cosine-weighted unoccluded fraction.
+// the pattern converges as frames accumulate). `world` (0 or 1): add the world's radiance
+// for the part of each cone that escapes (1 - opacity), looked up along the cone in the
+// world map prefiltered to the cone's width (vx_sky); `bounce` scales what the cones gather
+// from the voxels (0: world light only). Returns E; `vis` = the cosine-weighted unoccluded
+// fraction.
 uniform float u_vx_side_angle;  // radians
-vec3 vx_diffuse_cones(vec3 o, vec3 n, float t0, float t1, float step_scale, float rot, vec3 world,
+#ifdef GI_WORLD_GLSL
+// The world seen through a cone of half-angle 30 degrees (tan = 0.577): the map's mip whose
+// texels span about that angle (lib/world.glsl world_glossy; a uniform world is its colour).
+vec3 vx_sky(vec3 d) { return world_glossy(d, 0.52); }
+#else
+vec3 vx_sky(vec3 d) { return vec3(0.0); }
+#endif
+vec3 vx_diffuse_cones(vec3 o, vec3 n, float t0, float t1, float step_scale, float rot, float world,
                       float bounce, out float vis, float h0) {
     vec3 t, b;
     make_basis(n, t, b);
@@ -244,7 +253,7 @@ vec3 vx_diffuse_cones(vec3 o, vec3 n, float t0, float t1, float step_scale, floa
             w = w0 * ct;
         }
         vec4 c = vx_cone_h(o, d, TAN30, t0, t1, step_scale, h0, dot(d, n));
-        E += w * (bounce * c.rgb + (1.0 - c.a) * world);
+        E += w * (bounce * c.rgb + (world > 0.0 ? (1.0 - c.a) * vx_sky(d) : vec3(0.0)));
         occ += w * c.a;
     }
     vis = clamp(1.0 - occ / PI, 0.0, 1.0);

@@ -33,6 +33,7 @@
 #include "lib/brdf.glsl"
 #include "lib/lights.glsl"
 #include "lib/shadows.glsl"
+#include "lib/world.glsl"
 #include "raster3d/rsm_common.glsl"
 #include "vxgi/common.glsl"
 
@@ -54,7 +55,6 @@ uniform int u_rsm_light[RSM_MAX_VIEWS];      // light index of each RSM view
 uniform int u_bounce;                        // multi-bounce: gather last frame's volume
 uniform int u_gather;                        // gather at all (multi-bounce or a lit world)
 uniform int u_keep_records;                  // 1: an in-frame bounce iteration; the records stay for the next one
-uniform vec3 u_world;
 uniform float u_shadow_offset;               // voxels: shadow lookups start this far off the surface
 uniform float u_normal_offset;               // voxels: cones start this far off the surface
 uniform float u_step;
@@ -242,8 +242,8 @@ void main() {
         }
         if (u_gather == 1 && u_audit <= 0.0) {
             float vis;
-            Ep += vx_diffuse_cones(p + n * off, n, vs, u_max_distance, u_step, rot, u_world, float(u_bounce), vis, off);
-            Em += vx_diffuse_cones(p - n * off, -n, vs, u_max_distance, u_step, rot, u_world, float(u_bounce), vis, off);
+            Ep += vx_diffuse_cones(p + n * off, n, vs, u_max_distance, u_step, rot, 1.0, float(u_bounce), vis, off);
+            Em += vx_diffuse_cones(p - n * off, -n, vs, u_max_distance, u_step, rot, 1.0, float(u_bounce), vis, off);
         }
         vec3 Lp = sanitize(rho * INV_PI * Ep), Lm = sanitize(rho * INV_PI * Em);
         // a dilated voxel (its centre more than half a voxel off the plane) lies on one side of

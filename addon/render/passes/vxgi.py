@@ -150,11 +150,14 @@ def voxel_cascades(scene, frame, n: int, cascades: int, voxel_size: float, snap:
 
 class VXGIGraph(LightGatedGraph):
     """LightGatedGraph (skips, with the reason, when no light casts shadows), except that
-    an emissive mesh is a light too: it lights the voxels through its shadow-atlas cube."""
+    an emissive mesh is a light too (it lights the voxels through its shadow-atlas cube), and
+    so is the world: the voxels gather it through their cones (sky light that reaches a
+    surface and bounces on)."""
 
     def plan(self, needed, reasons=None):
         sc = self._scene
-        if sc is not None and not shadow_lights(sc) and any(m.is_emissive for m in sc.materials):
+        world_lit = sc is not None and sc.world is not None and float(np.max(sc.world.color)) > 0.0
+        if sc is not None and not shadow_lights(sc) and (world_lit or any(m.is_emissive for m in sc.materials)):
             from ..framegraph import FrameGraph
 
             return FrameGraph.plan(self, needed, reasons)
@@ -399,7 +402,6 @@ class VoxelInjectPass(Pass):
             prog["u_rsm_light"].write(li.tobytes())
         world = np.asarray(scene.world.color if scene.world is not None else (0, 0, 0), np.float64)
         multi, world_lit = bool(self["multi_bounce"]), float(world.max()) > 0.0
-        set_uniform(prog, "u_world", tuple(float(x) for x in world))
         set_uniform(prog, "u_vx_opacity_scale", float(self["opacity_scale"]))
         set_uniform(prog, "u_shadow_offset", float(self["shadow_offset"]))
         set_uniform(prog, "u_normal_offset", float(self["normal_offset"]))
