@@ -1,7 +1,7 @@
 """The probe family (IRRADIANCE_VOLUME, DDGI, RTXGI) against Cycles "full".
 
 Small on purpose (32 px, Cycles 128 spp or fewer, quality 0-1); the heavier numbers are in
-scripts/bench_probes.py -> docs/results/probes/. Tolerances from the measurements printed by
+scripts/bench_probes.py (into out/bench/probes/). Tolerances from the measurements printed by
 each test (Blender 5.0.1, llvmpipe, see docs/techniques/DDGI.md):
 
 * energy: the closed white room (albedo 0.8, one lamp: the indirect light is ~3.4x the

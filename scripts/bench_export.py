@@ -1,12 +1,15 @@
 """Benchmark of the scene exporter (addon/blender/export.py): bpy depsgraph -> SceneData.
 
-Run with the bpy module:  python scripts/bench_export.py [--quick] [--out docs/results]
+Run with the bpy module:  python scripts/bench_export.py [--quick] [--out DIR]
 
 Builds, in fresh scenes, grid meshes of about 1e5, 1e6 and 4e6 triangles (with a UV map and
 two materials, built with numpy + foreach_set, not from_pydata) and scenes with many
 instances of one mesh (linked duplicates and a collection instance grid), times
 ``export_scene`` (median of 3 runs; 1 run where one run takes over 20 s), prints a table,
-and writes ``export_benchmark.md`` and ``export_benchmark.json`` with machine info.
+and writes ``export_benchmark.md`` and ``export_benchmark.json`` with machine info into
+``--out`` (default ``out/bench/export/``; ``--quick``: ``export_benchmark_quick.*``). The page
+docs/results/export_benchmark.md is regenerated with ``--out docs/results`` (then delete the
+.json there, or link it: every file under docs/results must be linked from a page).
 """
 from __future__ import annotations
 
@@ -168,7 +171,8 @@ def cpu_model():
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="small sizes only (smoke test)")
-    ap.add_argument("--out", default=str(REPO / "docs" / "results"))
+    ap.add_argument("--out", default=str(REPO / "out" / "bench" / "export"),
+                    help="output folder (default: out/bench/export; the docs page: docs/results)")
     args = ap.parse_args(argv)
     if args.quick:
         cases = [lambda: case_single(50), lambda: case_linked(10, 50),

@@ -4,12 +4,16 @@
 
     flock /tmp/gi_heavy.lock .venv/bin/python scripts/bench_filters.py [--tag after] \
         [--cases cornell:pan,sunlit_room:pan,sunlit_room:light,cornell:orbit] [--res 48] \
-        [--techniques PT,ATROUS,SVGF,TAA]
+        [--techniques PT,ATROUS,SVGF,TAA] [--out DIR] [--case-out DIR]
 
-Each case writes a full comparison folder docs/results/animation_<scene>_<motion>/
-(results.json, animation.png, frame strips, report.html); the summary of the run goes to
-docs/results/filters/animation_<tag>.json and .md (a table per case: relMSE moving/held,
-stability vs Cycles', trail recovery, brightness of the last held frame against Cycles).
+The summary of the run goes to ``<out>/animation_<tag>.json`` and ``.md`` (``--out``, default
+``out/bench/filters/``; a table per case: relMSE moving/held, stability vs Cycles', trail
+recovery, brightness of the last held frame against Cycles). Each case writes a full
+comparison folder ``<case-out>/animation_<scene>_<motion>/`` (results.json, animation.png,
+frame strips, report.html; ``--case-out``, default ``out/bench/filters/cases/`` whatever
+``--out`` is). The tables the SVGF and TAA pages link are regenerated with
+``--out docs/results/filters`` (then delete the .json there, or link it: every file under
+docs/results must be linked from a page).
 Cycles per frame: 256 spp + OpenImageDenoise (cached), 12 moving + 10 still frames.
 
 ``--draws N`` repeats each run with N independent noise draws (``AnimationSpec.draws``): the
@@ -17,9 +21,10 @@ trail ratio is then the mean trail error over the mean still-camera error on the
 frame, the stability figure the mean over draws (per-draw values in the JSON). A case may give
 the motion's amount after an ``@`` (``cornell:pan@0.04``: a slow pan; the summary reports the
 pan's speed in pixels per frame at the viewed distance). ``--taa-set k=v,...`` overrides TAA
-parameters for the whole run (e.g. ``history_normal=-1,history_fallback=0``: the TAA before
-the history normal test of 146b53a); ``--svgf-set k=v,...`` does the same for SVGF. ``--pt-set k=v,...`` sets path-tracer parameter defaults for
-every technique (e.g. ``pixel_sequence=1``: Halton in-pixel positions).
+parameters for the whole run (e.g. ``history_normal=-1,history_fallback=0``: TAA without its
+history normal test and without its fallback tap); ``--svgf-set k=v,...`` does the same for
+SVGF. ``--pt-set k=v,...`` sets path-tracer parameter defaults for every technique (e.g.
+``pixel_sequence=1``: Halton in-pixel positions).
 """
 from __future__ import annotations
 
@@ -36,7 +41,7 @@ sys.path.insert(0, HERE)
 
 
 def main():
-    ap = argparse.ArgumentParser()
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--tag", default="after")
     ap.add_argument("--cases", default="cornell:pan,sunlit_room:pan,sunlit_room:light,cornell:orbit")
     ap.add_argument("--res", type=int, default=48)
@@ -44,7 +49,10 @@ def main():
     ap.add_argument("--frames", type=int, default=12)
     ap.add_argument("--hold", type=int, default=10)
     ap.add_argument("--ref-spp", type=int, default=256)
-    ap.add_argument("--no-docs", action="store_true", help="write the case folders under /tmp instead of docs/results")
+    ap.add_argument("--out", default=os.path.join(REPO, "out", "bench", "filters"),
+                    help="folder of the summary animation_<tag>.json/.md (default: out/bench/filters)")
+    ap.add_argument("--case-out", default=os.path.join(REPO, "out", "bench", "filters", "cases"),
+                    help="folder of the per-case comparison folders (default: out/bench/filters/cases)")
     ap.add_argument("--draws", type=int, default=1, help="independent noise draws per run (trail/stability: means)")
     ap.add_argument("--taa-set", default="", help="TAA parameter overrides k=v,... for every quality level")
     ap.add_argument("--svgf-set", default="", help="SVGF parameter overrides k=v,... for every quality level")
@@ -85,8 +93,7 @@ def main():
     for case in a.cases.split(","):
         scene_name, motion = case.split(":")
         motion, _, amount = motion.partition("@")
-        out = os.path.join("/tmp" if a.no_docs else os.path.join(REPO, "docs", "results"),
-                           f"animation_{scene_name}_{motion}" + (f"_{amount}" if amount else ""))
+        out = os.path.join(a.case_out, f"animation_{scene_name}_{motion}" + (f"_{amount}" if amount else ""))
         opts = gc.parse_args([scene_name, "--animation", motion, "--techniques", a.techniques, "--res", str(a.res),
                               "--anim-frames", str(a.frames), "--anim-hold", str(a.hold),
                               "--anim-ref-spp", str(a.ref_spp), "--anim-draws", str(a.draws), "--out", out]
@@ -118,7 +125,7 @@ def main():
                               "mean_ratio_hold": sum(v["mean_ratio"][anim["stop_frame"] + 1:])
                               / max(1, len(v["mean_ratio"][anim["stop_frame"] + 1:]))}
                            for t, v in anim["techniques"].items()}}
-    d = os.path.join(REPO, "docs", "results", "filters")
+    d = a.out
     os.makedirs(d, exist_ok=True)
     with open(os.path.join(d, f"animation_{a.tag}.json"), "w") as f:
         json.dump(gc._clean_json(summary), f, indent=1)

@@ -2,7 +2,7 @@
 with Cycles on the same scene in the same run.
 
 Run with the bpy module (one process per checkout; ``--repo`` measures another checkout,
-e.g. the code before the many-light work, with this same script and scene):
+e.g. one without light culling, with this same script and scene):
 
     .venv/bin/python scripts/bench_lights.py --repo /tmp/gi_before --label before
     .venv/bin/python scripts/bench_lights.py --label after
@@ -39,12 +39,16 @@ docs/results/light_tree.md:
 
     .venv/bin/python scripts/bench_lights.py --repo /tmp/gi_before --label before \
         --techniques PT,RESTIR_DI --kinds mix --world forest --counts 10,100,1000,10000 \
-        --res 64 --ref-spp 128 --ref-cache /tmp/refs --name light_tree
+        --res 64 --ref-spp 128 --ref-cache /tmp/refs --name light_tree --out docs/results
     .venv/bin/python scripts/bench_lights.py --label after (same options)
 
-Writes ``<out>/many_lights_<label>.json``; the ``after`` run also writes
-``<out>/many_lights.md`` and ``many_lights.json`` with the before numbers side by side when
-``many_lights_before.json`` exists.
+Output folder ``--out``: default ``out/bench/lights/`` (the pages docs/results/many_lights.md
+and light_tree.md are regenerated with ``--out docs/results``; then delete the .json files
+there, or link them: every file under docs/results must be linked from a page). Writes
+``<out>/many_lights_<label>.json``; the ``after`` run also writes ``<out>/many_lights.md`` and
+``many_lights.json`` with the before numbers side by side when ``many_lights_before.json``
+exists. With ``--techniques``: ``<out>/<name>_<label>.json``, and ``<out>/<name>.md`` when
+``<name>_before.json`` exists.
 """
 from __future__ import annotations
 
@@ -291,7 +295,8 @@ def main(argv=None):
     ap.add_argument("--frame-budget", type=float, default=3.0,
                     help="s: a technique slower than this per frame runs fewer frames")
     ap.add_argument("--no-pt", action="store_true")
-    ap.add_argument("--out", default=str(REPO / "docs" / "results"))
+    ap.add_argument("--out", default=str(REPO / "out" / "bench" / "lights"),
+                    help="output folder (default: out/bench/lights; the docs pages: docs/results)")
     ap.add_argument("--set", action="append", default=[], metavar="PASS.PARAM=VALUE",
                     help="override a pass parameter for every render (e.g. shadows.max_shadow_maps=16); repeatable")
     ap.add_argument("--techniques", default="",
@@ -302,6 +307,8 @@ def main(argv=None):
     ap.add_argument("--world", default="dark", help="dark, or a bundled HDRI name (forest, city, ...)")
     ap.add_argument("--ref-cache", default=None, help="folder keeping the Cycles references between runs")
     ap.add_argument("--name", default="many_lights", help="result file prefix (with --techniques)")
+    ap.add_argument("--before-label", default="the scheme without culling (every light shadow-mapped, every light "
+                    "shaded at every pixel)", help="what the before checkout is, for many_lights.md")
     ap.add_argument("--lock", default=None,
                     help="a file to flock around each light count's renders (shared machines: others run between)")
     args = ap.parse_args(argv)
@@ -348,7 +355,8 @@ def main(argv=None):
             rows.append(run_count(args, n, bpy, np, reference, export_scene, session))
     gl = get_gl()
     info = {"label": args.label, "repo": str(Path(args.repo).resolve()), "res": args.res, "samples": args.samples,
-            "quality": args.quality, "overrides": overrides, "machine": f"{platform.machine()} ({os.cpu_count()} cores)",
+            "quality": args.quality, "overrides": overrides, "before_label": args.before_label,
+            "machine": f"{platform.machine()} ({os.cpu_count()} cores)",
             "gl": getattr(gl, "info", {}), "blender": bpy.app.version_string,
             "date": time.strftime("%Y-%m-%d %H:%M"), "rows": rows}
     out = Path(args.out)
@@ -360,7 +368,7 @@ def main(argv=None):
         before_p = out / f"{args.name}_before.json"
         if args.label != "before" and before_p.exists():
             (out / f"{args.name}.md").write_text(report_techniques(info, json.loads(before_p.read_text())))
-    elif True:
+    else:
         (out / f"many_lights_{args.label}.json").write_text(json.dumps(info, indent=1))
     if args.label == "after" and not args.techniques:
         before_p = out / "many_lights_before.json"
@@ -423,7 +431,7 @@ def report(after: dict, before: dict | None) -> str:
          "Shared machine: expect +-20 % between runs. Scene: a 16 m floor with a sphere, two pillars and a metal "
          "ball under N point lights (radius 5 cm, many colours, 768 W in total whatever N), built by the script.",
          "",
-         "`before` = commit f05937a (every light shadow-mapped, every light shaded at every pixel), measured by "
+         f"`before` = {after.get('before_label') or 'the checkout given to --repo'}, measured by "
          "the same script with `--repo`. relMSE against Cycles direct at "
          f"{after['rows'][0]['cycles_direct_ref_spp'] if after['rows'] else '?'} spp, all pixels. "
          "ms/frame = median over the accumulated frames, after a warm-up render (shader compiles, BVH builds "

@@ -1,7 +1,7 @@
 """Probe family benchmark (IRRADIANCE_VOLUME, DDGI, RTXGI): the numbers of the probe pages.
 
-Sections (``--only a,b``; each writes its own JSON into docs/results/probes/ so they can be
-run one at a time under the heavy-command lock):
+Sections (``--only a,b``; each writes its own JSON into ``--out``, default
+``out/bench/probes/``, so they can be run one at a time under the heavy-command lock):
 
 * ``energy``: mean of the image over Cycles "full"'s on the closed white room (one lamp,
   albedo 0.8), the open world-lit furnace (sphere on a floor under a uniform white world)
@@ -9,7 +9,7 @@ run one at a time under the heavy-command lock):
   everywhere) -> energy.json.
 * ``leak``: the thin-wall two rooms, with lamp A on and off (lamp B always on): the light
   leaked into the dark room is ours(A on) - ours(A off), beside Cycles' same difference
-  (about 0: the wall is closed); also the old "mean - Cycles mean" measure. Variants
+  (about 0: the wall is closed); also the simpler "mean - Cycles mean" measure. Variants
   (bench-only technique ids) isolate what RTXGI's relocation and placement do: margin
   (-0.5 inner / +0.05 enclosing), relocation off, classification off; per variant the count
   of relocated and inactive probes -> leak.json.
@@ -31,7 +31,11 @@ run one at a time under the heavy-command lock):
   RTXGI's probe glossy light as its miss fallback) against Cycles "full" -> ssr.json.
 
 Run: flock /tmp/gi_heavy.lock .venv/bin/python scripts/bench_probes.py --only energy [--res 48] [--spp 256]
-Tables for the pages: .venv/bin/python scripts/bench_probes.py --tables
+    [--out DIR]
+Tables for the pages (from the JSON files in ``--out``): .venv/bin/python scripts/bench_probes.py --tables
+The figure docs/results/probes/dynamics.png is regenerated with ``--only dynamics --out
+docs/results/probes`` (then delete dynamics.json there, or link it: every file under
+docs/results must be linked from a page).
 """
 from __future__ import annotations
 
@@ -59,7 +63,7 @@ from gi_preview.render.gl import get_gl  # noqa: E402
 from gi_preview.render.passes import probes as P  # noqa: E402
 
 TECHS = ("IRRADIANCE_VOLUME", "DDGI", "RTXGI")
-OUT = REPO / "docs" / "results" / "probes"
+OUT = REPO / "out" / "bench" / "probes"  # default of --out
 
 
 def log(*a):
@@ -406,14 +410,17 @@ def tables():
 
 
 def main():
-    ap = argparse.ArgumentParser()
+    global OUT
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--res", type=int, default=48)
     ap.add_argument("--spp", type=int, default=256)
     ap.add_argument("--samples", type=int, default=8)
     ap.add_argument("--scenes", default="cornell,sunlit_room")
     ap.add_argument("--only", default="energy,leak,ladder,compare,dynamics,ssr")
     ap.add_argument("--tables", action="store_true", help="print the markdown tables of the stored results")
+    ap.add_argument("--out", default=str(OUT), help="output folder (default: out/bench/probes)")
     a = ap.parse_args()
+    OUT = Path(a.out)
     if a.tables:
         tables()
         return

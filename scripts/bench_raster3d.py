@@ -6,7 +6,7 @@ leak, stability, lag.
         [--scenes cornell,sunlit_room] [--techniques DIRECT,RSM,LPV] [--quality all]
         [--res 64] [--ref-spp 256] [--samples 8] [--baselines cycles,cycles_denoised,eevee]
         [--stability-frames 60] [--stability-quality 0,1,2,3] [--label L] [--set PASS.PARAM=V]
-        [--out docs/results/raster3d]
+        [--out DIR]   (default out/bench/raster3d)
     .venv/bin/python scripts/bench_raster3d.py --lock-chunk 20 ...   (no outer flock: the script
         takes /tmp/gi_heavy.lock itself and gives it up every 20 frames, see ``HeavyLock``)
     (--parts summary: only rewrite summary.md from the folders present)
@@ -43,7 +43,10 @@ leak, stability, lag.
 * ``lag``: how many frames the bounce of a moved light takes to follow (camera still, the
   light moved 0.6 m in one step; the share of the way from the old indirect image to the
   new one per frame, 50 % / 90 % frames). ``<out>/lag.json``.
-The doc pages (docs/techniques/RSM.md, LPV.md) quote these numbers.
+The doc pages (docs/techniques/RSM.md, LPV.md) quote these numbers. Output folder ``--out``:
+default ``out/bench/raster3d/``; the table docs/results/raster3d/summary.md is regenerated with
+``--out docs/results/raster3d`` (then keep only summary.md there: every file under
+docs/results must be linked from a page).
 """
 from __future__ import annotations
 
@@ -163,7 +166,7 @@ def part_compare(o, rows):
 
 
 # techniques that model Cycles' "full" (gi_compare --reference auto measures them only
-# against it) but whose demo table also wants the one-bounce columns (issue 10)
+# against it) but whose demo table also wants the one-bounce columns, to sit beside RSM and LPV
 BOTH_REFS = ("VXGI",)
 BOTH_REFS_FLAG = "--gi-compare-one-bounce-too"
 HOLD_S = 150.0  # lock turns of the BOTH_REFS child: after the render that passes this hold
@@ -687,7 +690,8 @@ def main(argv=None):
     p.add_argument("--label", default="", help="name of this configuration in stability.json / lag.json")
     p.add_argument("--cache", default=os.path.join("/tmp", "gi_bench_raster3d_cache"),
                    help="folder for the Cycles frames of the stability part (deterministic poses)")
-    p.add_argument("--out", default=os.path.join(REPO, "docs", "results", "raster3d"))
+    p.add_argument("--out", default=os.path.join(REPO, "out", "bench", "raster3d"),
+                   help="output folder (default: out/bench/raster3d; the docs table: docs/results/raster3d)")
     p.add_argument("--lock-chunk", type=int, default=0,
                    help="take /tmp/gi_heavy.lock here and give it up every N moving frames "
                         "(stability, lag; compare of VXGI: every N rows; run WITHOUT an outer flock); "

@@ -1,8 +1,14 @@
-"""Benchmark of RESTIR_DI (issue 11) on the many-light demo scene, writing
-docs/results/restir/results.json and PNGs for a person to look at (and, with --filters, the
-filters ATROUS/SVGF/TAA on cornell and sunlit_room as before).
+"""Benchmark of RESTIR_DI on the many-light demo scene, writing ``<out>/results.json`` and PNGs
+for a person to look at (and, with --filters, the filters ATROUS/SVGF/TAA on cornell and
+sunlit_room).
 
-    cd /work/main && flock /tmp/gi_heavy.lock .venv/bin/python scripts/bench_restir.py [--res 64] [--frames 16] [--cold 8] [--filters]
+    flock /tmp/gi_heavy.lock .venv/bin/python scripts/bench_restir.py [--res 64] [--frames 16] [--cold 8]
+        [--filters] [--out DIR] [--img-out DIR]
+
+Run from the repository root. ``--out``: default ``out/bench/restir/`` (results.json,
+``<scene>_cycles_pt_atrous_svgf_taa.png``); ``--img-out``: the figures
+restir_di_many_lights.png and restir_di_debug_w_m_direct.png, default the ``--out`` folder
+(docs/techniques/img holds the pages' figures, as JPEG).
 
 many_lights (256 coloured point lights + 3 emissive strips), against Cycles direct-only:
 
@@ -28,8 +34,7 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-OUT = REPO / "docs" / "results" / "restir"
-IMG = REPO / "docs" / "techniques" / "img"
+OUT = REPO / "out" / "bench" / "restir"  # default of --out
 
 CONFIGS = {
     "default (ray-traced visibility, temporal auto)": {},
@@ -43,14 +48,18 @@ CONFIGS = {
 
 
 def main():
-    ap = argparse.ArgumentParser()
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--res", type=int, default=64)
     ap.add_argument("--frames", type=int, default=16)
     ap.add_argument("--cold", type=int, default=8, help="cold-start frames averaged for 'after 1 frame'")
     ap.add_argument("--ref-spp", type=int, default=256)
     ap.add_argument("--only", default="", help="';'-separated config names (default: all)")
     ap.add_argument("--filters", action="store_true", help="also the filters on cornell / sunlit_room")
+    ap.add_argument("--out", default=str(OUT), help="output folder (default: out/bench/restir)")
+    ap.add_argument("--img-out", default=None, help="folder of the RESTIR_DI figures (default: --out)")
     a = ap.parse_args()
+    out_dir = Path(a.out)
+    IMG = Path(a.img_out) if a.img_out else out_dir
     sys.path.insert(0, str(REPO / "scripts"))
     from _checkout import setup_blender
     setup_blender()
@@ -98,8 +107,9 @@ def main():
         S.release_session(sess).result(timeout=60)
         return r.image[..., :3]
 
-    OUT.mkdir(parents=True, exist_ok=True)
-    out_path = OUT / "results.json"
+    out_dir.mkdir(parents=True, exist_ok=True)
+    IMG.mkdir(parents=True, exist_ok=True)
+    out_path = out_dir / "results.json"
     results = json.loads(out_path.read_text()) if out_path.exists() else {}
     results.update({"res": a.res, "frames": a.frames, "cold_frames": a.cold, "ref_spp": a.ref_spp})
     sc = D.build_demo("many_lights", resolution=a.res)
@@ -176,7 +186,7 @@ def main():
                 r[tech] = {"ms": ms, "relmse_first": rel(imgs[0], ref), "relmse_last": rel(imgs[-1], ref),
                            "mean_vs_cycles": float(imgs[-1].mean() / ref.mean())}
                 shots.append(tonemap(imgs[-1]))
-            png(shots, OUT / f"{scene}_cycles_pt_atrous_svgf_taa.png", scale=1)
+            png(shots, out_dir / f"{scene}_cycles_pt_atrous_svgf_taa.png", scale=1)
             results["filters"][scene] = r
             bpy.data.scenes.remove(sc)
     out_path.write_text(json.dumps(results, indent=1))

@@ -1,7 +1,10 @@
-"""Benchmark of RESTIR_GI (issue 11), writing docs/results/restir_gi/results.json and PNGs.
+"""Benchmark of RESTIR_GI, writing ``<out>/results.json`` and PNGs (``--out``, default
+``out/bench/restir_gi/``).
 
-    cd /work/main && flock /tmp/gi_heavy.lock .venv/bin/python scripts/bench_restir_gi.py [--res 64]
-        [--frames 16] [--ref-spp 256] [--parts still,motion,demos,configs]
+    flock /tmp/gi_heavy.lock .venv/bin/python scripts/bench_restir_gi.py [--res 64]
+        [--frames 16] [--ref-spp 256] [--parts still,motion,demos,configs] [--out DIR]
+
+Run from the repository root. A run adds its parts to an existing ``<out>/results.json``.
 
 * still: cornell and sunlit_room, still camera, frame ``--frames`` as shown (not accumulated)
   and the accumulated mean of all frames, relMSE against Cycles full: RESTIR_GI (no filter),
@@ -28,7 +31,7 @@ import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-OUT = REPO / "docs" / "results" / "restir_gi"
+OUT = REPO / "out" / "bench" / "restir_gi"  # --out
 
 
 def setup():
@@ -152,7 +155,7 @@ def configs(a, results):
 
 
 def motion(a, results):
-    """Moving camera through E's per-frame comparison (addon/compare/animation.py, the engine
+    """Moving camera through the per-frame comparison (addon/compare/animation.py, the engine
     of ``gi_compare.py --animation``): relMSE per frame, error of the disoccluded pixels, the
     ghost trail against a still camera, the stability figure against Cycles'."""
     import bpy
@@ -230,7 +233,8 @@ def demos(a, results):
 
 
 def main():
-    ap = argparse.ArgumentParser()
+    global OUT
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--res", type=int, default=64)
     ap.add_argument("--frames", type=int, default=16)
     ap.add_argument("--ref-spp", type=int, default=256)
@@ -242,12 +246,14 @@ def main():
     ap.add_argument("--motion-techniques", default="RESTIR_GI,RESTIR_GI+SVGF,SVGF")
     ap.add_argument("--motion-draws", type=int, default=1,
                     help="independent noise draws per motion run (trail and stability: means; see animation.py)")
-    ap.add_argument("--out", default=str(OUT / "results.json"))
+    ap.add_argument("--out", default=str(OUT), help="output folder: results.json and the PNGs "
+                    "(default: out/bench/restir_gi)")
     a = ap.parse_args()
     a.scenes = a.scenes.split(",")
+    OUT = Path(a.out)
     setup()
     OUT.mkdir(parents=True, exist_ok=True)
-    path = Path(a.out)
+    path = OUT / "results.json"
     results = json.loads(path.read_text()) if path.exists() else {}
     results.update({"res": a.res, "frames": a.frames, "ref_spp": a.ref_spp})
     for part in a.parts.split(","):

@@ -1,6 +1,6 @@
 """Ray-tracing benchmark: BVH build, ray throughput, and PT vs Cycles time to equal error.
 
-Run with the bpy module:  .venv/bin/python scripts/bench_rt.py [--quick] [--out docs/results]
+Run with the bpy module:  .venv/bin/python scripts/bench_rt.py [--quick] [--out DIR]
 
 1. BVH build (CPU, numpy; ``bvh.build_blas``) for triangle soups of 1e5, 1e6 and 4e6
    triangles (a displaced sphere, so the triangles are small, coherent and overlapping like a
@@ -18,7 +18,10 @@ Run with the bpy module:  .venv/bin/python scripts/bench_rt.py [--quick] [--out 
    PT time / Cycles time is quoted per target. PT's time is its tracing time plus its BVH
    build (Cycles' includes its sync and BVH build).
 
-Writes ``rt_benchmark.md`` and ``rt_benchmark.json`` (with machine and GL info).
+Writes ``rt_benchmark.md`` and ``rt_benchmark.json`` (with machine and GL info) into ``--out``,
+default ``out/bench/rt/``. The page docs/results/rt_benchmark.md is regenerated with
+``--out docs/results`` (then delete the .json there, or link it: every file under
+docs/results must be linked from a page).
 """
 from __future__ import annotations
 
@@ -251,7 +254,8 @@ def write_report(out_dir: Path, data: dict):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--quick", action="store_true", help="small sizes (smoke test)")
-    ap.add_argument("--out", default=str(REPO / "docs" / "results"))
+    ap.add_argument("--out", default=str(REPO / "out" / "bench" / "rt"),
+                    help="output folder (default: out/bench/rt; the docs page: docs/results)")
     a = ap.parse_args()
     ctx = moderngl.create_standalone_context(backend="egl", require=430)
     programs = ProgramCache(ctx)

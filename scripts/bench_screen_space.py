@@ -3,7 +3,10 @@
 
     .venv/bin/python scripts/bench_screen_space.py [--scenes cornell,glossy_spheres]
         [--techniques SSAO,HBAO,SSDO,SSR,AUTO] [--quality 0,1,2,3] [--res 96] [--ref-spp 256]
-        [--samples 16] [--curve 1,2,4,8,16,32,64] [--out docs/techniques/img] [--cache DIR]
+        [--samples 16] [--curve 1,2,4,8,16,32,64] [--out DIR] [--cache DIR]
+
+Every output goes into ``--out``, default ``out/bench/screen_space/`` (images and JSON alike;
+the pages' figures in docs/techniques/img are picked from there by hand).
 
 For every scene: Cycles references "ao" (AO node, distance 1 = the AO techniques' default
 radius), "direct", "one_bounce" and "full", plus Cycles' own error-vs-time curve against
@@ -18,18 +21,20 @@ frame, and time x samples for the accumulated image). Measured:
 * AUTO (DIRECT + SSDO + SSR planned per scene) the same way, with the passes the planner
   skipped and why (``skipped_passes``).
 
-``--repro corridor,bounce_room,mirror_gradient`` instead measures issue 9's reproduction
-scenes (``blender_tests/scenes_screen_space.py``) at ``--res`` (64 in the pages) against
-Cycles "one_bounce": relMSE over the whole image and masked to each named surface (the
+``--repro corridor,bounce_room,mirror_gradient`` instead measures the family's reproduction
+scenes (``blender_tests/scenes_screen_space.py``: reflections in a corridor, light bounced
+onto a ceiling, a reflected gradient) at ``--res`` (64 in the pages) against Cycles
+"one_bounce": relMSE over the whole image and masked to each named surface (the
 reflective floor and gold wall, the indirectly lit ceiling), and the total variation of
 the reflections (ours vs Cycles'), and for SSR/AUTO the seam between found reflections and
 the miss fallback (the mean luminance step across pixel pairs where SSR's found share
 jumps by more than 0.25, ours vs Cycles' on the same pairs), into
-``docs/results/screen_space_repro.json`` and
-``<out>/repro_<scene>_*.png``.
+``<out>/screen_space_repro.json`` and ``<out>/repro_<scene>_*.png``.
 
 ``--motion corridor`` measures SSR's temporal reprojection under camera motion (reflection
-lag: reprojection by the reflected point vs by the surface; ``docs/results/screen_space_motion.json``).
+lag: reprojection by the reflected point vs by the surface; ``<out>/screen_space_motion.json``).
+``--seeds`` writes ``<out>/screen_space_seeds.json``, ``--same-run`` ``<out>/screen_space_same_run.json``
+and ``.md`` (with ``--profile``: ``<out>/screen_space_profile.json``).
 
 Writes ``<out>/<scene>_<TECH>_q<Q>.png`` (ours), ``<scene>_cycles_<kind>.png``,
 ``<scene>_<TECH>_q<Q>_vs_<kind>_error.png`` (relMSE heat map), the AO images, and
@@ -68,9 +73,10 @@ def main(argv=None):
     p.add_argument("--ref-spp", type=int, default=256)
     p.add_argument("--samples", type=int, default=16)
     p.add_argument("--curve", default="1,2,4,8,16,32,64")
-    p.add_argument("--out", default=os.path.join(REPO, "docs", "techniques", "img"))
+    p.add_argument("--out", default=os.path.join(REPO, "out", "bench", "screen_space"),
+                   help="output folder: images and JSON (default: out/bench/screen_space)")
     p.add_argument("--cache", default=None)
-    p.add_argument("--repro", default="", help="issue 9's reproduction scenes instead of the demo scenes")
+    p.add_argument("--repro", default="", help="the reproduction scenes (scenes_screen_space.py) instead of the demo scenes")
     p.add_argument("--motion", default="", help="reflection lag under camera motion on these reproduction scenes")
     p.add_argument("--motion-cycles", type=int, default=0, help="with --motion: also compare every frame with "
                    "Cycles one_bounce at this many spp at that frame's camera (error against the truth, not lag alone)")
@@ -273,7 +279,7 @@ def tables(tech: str, path: str, before: str = "") -> str:
 
 
 def repro(opts):
-    """Issue 9's reproduction scenes: masked errors and reflection total variation."""
+    """The reproduction scenes: masked errors and reflection total variation."""
     import numpy as np
     import bpy
 
@@ -288,7 +294,7 @@ def repro(opts):
     os.makedirs(opts.out, exist_ok=True)
     techs = ["DIRECT"] + [t for t in opts.techniques.split(",") if t]
     out = {"res": opts.res, "ref_spp": opts.ref_spp, "samples": opts.samples, "scenes": {}}
-    path = os.path.join(REPO, "docs", "results", "screen_space_repro.json")
+    path = os.path.join(opts.out, "screen_space_repro.json")
     if os.path.exists(path):  # a run of some scenes or techniques keeps the others of an earlier run
         with open(path) as f:
             old = json.load(f)
@@ -348,9 +354,9 @@ def motion(opts):
     """SSR's temporal reprojection under camera motion: the camera dollies along the
     corridor (``STEP`` scene units per frame, 12 frames), rendered viewport-style (one frame
     per call, history kept) with the history reprojected by the reflected point (SSR's
-    default) and by the reflecting surface's motion (the code before); each frame is
+    default) and by the reflecting surface's motion (``reproject_by_hit=False``); each frame is
     compared, masked to the reflective surfaces, with a fresh 16-frame render of SSR at that
-    camera (no history, so no lag). Writes ``docs/results/screen_space_motion.json`` and
+    camera (no history, so no lag). Writes ``<out>/screen_space_motion.json`` and
     ``<out>/motion_<scene>_<variant>.png`` (the last frame)."""
     import copy
 
@@ -448,7 +454,8 @@ def motion(opts):
         bpy_scene_remove(sc)
     techniques.REGISTRY.pop(SSRSurfaceMotion.id, None)
     techniques.REGISTRY.pop(SSRMissOneFrame.id, None)
-    path = os.path.join(REPO, "docs", "results", "screen_space_motion.json")
+    os.makedirs(opts.out, exist_ok=True)
+    path = os.path.join(opts.out, "screen_space_motion.json")
     with open(path, "w") as f:
         json.dump(out, f, indent=1, default=float)
     log(f"wrote {path}")
@@ -460,7 +467,7 @@ def seeds(opts):
     every frame's seed shifted by each offset of ``--seeds`` (the seed the benchmark uses is
     offset 0), relMSE vs Cycles one_bounce at ``--ref-spp``; prints mean/std per technique
     and level (an earlier checkout can be measured the same way: ``git archive COMMIT``,
-    then this script from there). Writes ``docs/results/screen_space_seeds.json``."""
+    then this script from there). Writes ``<out>/screen_space_seeds.json``."""
     import numpy as np
 
     from gi_preview.blender import demo_scenes, reference
@@ -499,15 +506,16 @@ def seeds(opts):
             bpy.data.scenes.remove(sc)
     finally:
         S.FrameState = orig
-    path = os.path.join(REPO, "docs", "results", "screen_space_seeds.json")
+    os.makedirs(opts.out, exist_ok=True)
+    path = os.path.join(opts.out, "screen_space_seeds.json")
     with open(path, "w") as f:
         json.dump(out, f, indent=1, default=float)
     log(f"wrote {path}")
     return out
 
 
-SAME_RUN_JSON = os.path.join(REPO, "docs", "results", "screen_space_same_run.json")
-PROFILE_JSON = os.path.join(REPO, "docs", "results", "screen_space_profile.json")
+SAME_RUN_JSON = "screen_space_same_run.json"  # in --out
+PROFILE_JSON = "screen_space_profile.json"
 
 
 def thin_wall():
@@ -668,8 +676,8 @@ def same_run(opts):
     re-timed in the same run (``--curve`` spp) for the equal-error speed-ups; the reference is
     the cached ``--ref-spp`` one_bounce render. Both trees' images are measured with this
     tree's metrics. ``--same-run`` takes a commit (exported with ``git archive``) or a folder.
-    Writes ``docs/results/screen_space_same_run.json`` (a run of some scenes keeps the others)
-    and ``docs/results/screen_space_same_run.md`` (the tables)."""
+    Writes ``<out>/screen_space_same_run.json`` (a run of some scenes keeps the others)
+    and ``<out>/screen_space_same_run.md`` (the tables)."""
     import subprocess
     import tempfile
 
@@ -692,7 +700,9 @@ def same_run(opts):
     dirty = [ln[3:] for ln in subprocess.run(["git", "-C", REPO, "status", "--porcelain", "--", "addon", "shaders"],
                                              capture_output=True, text=True).stdout.splitlines()]
     out = {"res": opts.res, "ref_spp": opts.ref_spp, "samples": opts.samples, "scenes": {}}
-    json_path = PROFILE_JSON if opts.profile else SAME_RUN_JSON  # profiled frames are serialised: own file
+    os.makedirs(opts.out, exist_ok=True)
+    same_run_json = os.path.join(opts.out, SAME_RUN_JSON)
+    json_path = os.path.join(opts.out, PROFILE_JSON) if opts.profile else same_run_json  # profiled: own file
     if os.path.exists(json_path):
         with open(json_path) as f:
             old = json.load(f)
@@ -772,9 +782,9 @@ def same_run(opts):
         log(f"wrote {json_path}")
         return out
     md = same_run_tables(out)
-    with open(os.path.splitext(SAME_RUN_JSON)[0] + ".md", "w") as f:
+    with open(os.path.splitext(same_run_json)[0] + ".md", "w") as f:
         f.write(md)
-    log(f"wrote {SAME_RUN_JSON} and its .md")
+    log(f"wrote {same_run_json} and its .md")
     return out
 
 
@@ -788,7 +798,7 @@ def same_run_tables(out) -> str:
         return (f"≤{bd['at_most']:.2g}×" if "at_most" in bd else f"≥{bd['at_least']:.2g}×" if "at_least" in bd
                 else "n/a")
 
-    lines = ["# Screen-space family: before issue 9 and now, timed in the same run", "",
+    lines = ["# Screen-space family: two trees timed in the same run (before -> current)", "",
              f"{out['res']} px, {out['samples']} accumulated frames (ms/frame = median frame), relMSE vs Cycles "
              f"one_bounce at {out['ref_spp']} spp; speed-up = Cycles' time to the same relMSE (its one_bounce curve "
              "timed in the same run) / the technique's accumulated time. Both trees render in one run, alternating "

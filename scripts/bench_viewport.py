@@ -1,12 +1,16 @@
-"""Viewport and F12 benchmark, before and after the non-blocking viewport (issue 8, part 4).
+"""Viewport and F12 benchmark of two checkouts: ``--before`` (e.g. one whose viewport waits
+for F12 renders) against ``--after`` (default: this checkout, the non-blocking viewport).
 
 Run with the bpy module (each checkout is measured in a child process of its own):
 
-    git worktree add /tmp/gi_before f05937a        # the commit before this work
-    python scripts/bench_viewport.py --before /tmp/gi_before [--out docs/results]
+    git worktree add /tmp/gi_before COMMIT         # the checkout to compare against
+    python scripts/bench_viewport.py --before /tmp/gi_before [--out DIR]
 
 or measure one checkout at a time (``--measure CHECKOUT --json FILE``) and write the report
-from the two files (``--report BEFORE.json AFTER.json``).
+from the two files (``--report BEFORE.json AFTER.json``). Writes ``viewport_benchmark.md`` and
+``.json`` into ``--out``, default ``out/bench/viewport/`` (the page
+docs/results/viewport_benchmark.md is regenerated with ``--out docs/results``; then delete the
+.json there, or link it: every file under docs/results must be linked from a page).
 
 Scenes: the ``cornell`` demo scene and a 10^6-triangle scene (a 708 x 708 quad grid built
 with numpy + foreach_set, a small cube to move, a sun). Both rendered with DIRECT, q1.
@@ -281,15 +285,8 @@ ROWS = [
 ]
 
 
-def report(before: dict, after: dict, out_dir: Path):
-    out_dir.mkdir(parents=True, exist_ok=True)
-    (out_dir / "viewport_benchmark.json").write_text(json.dumps({"before": before, "after": after,
-                                                                  "machine": platform.platform(),
-                                                                  "cpus": os.cpu_count()}, indent=1))
-
-    def fmt(v):
-        return f"{v:.1f}" if isinstance(v, float) else str(v)
-
+def report(before: dict, after: dict, out_dir: Path, before_label: str = "the --before checkout",
+           after_label: str = "the --after checkout"):
     def commit(res):
         if res.get("commit"):
             return res["commit"]
@@ -299,9 +296,20 @@ def report(before: dict, after: dict, out_dir: Path):
         except (OSError, subprocess.CalledProcessError, KeyError):
             return "?"
 
+    for res in (before, after):
+        res["commit"] = commit(res)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "viewport_benchmark.json").write_text(json.dumps({"before": before, "after": after,
+                                                                  "machine": platform.platform(),
+                                                                  "cpus": os.cpu_count()}, indent=1))
+
+    def fmt(v):
+        return f"{v:.1f}" if isinstance(v, float) else str(v)
+
     lines = ["# Viewport and F12 benchmark: before / after the non-blocking viewport", "",
-             f"`python scripts/bench_viewport.py --before /tmp/gi_before` (before = commit {commit(before)}, "
-             f"after = commit {commit(after)}). {W} x {H}, DIRECT q1, {FRAMES} frames; "
+             f"`python scripts/bench_viewport.py --before /tmp/gi_before` (before = {before_label}, "
+             f"after = {after_label}; the checkouts' commits are in viewport_benchmark.json). "
+             f"{W} x {H}, DIRECT q1, {FRAMES} frames; "
              f"{after.get('gl_renderer')} on {os.cpu_count()} CPU cores ({platform.machine()}); "
              "absolute milliseconds are llvmpipe's, the ratios are the point.", ""]
     for scene in after["scenes"]:
@@ -320,18 +328,22 @@ def report(before: dict, after: dict, out_dir: Path):
                       f"again; the frame after it costs what any frame costs (rendering dominates on llvmpipe). "
                       f"The F12 render's total grows by the viewport frames served in between.", ""]
     lines += ["How each number is taken: see the docstring of `scripts/bench_viewport.py`. Per-frame render "
-              "times (viewport frame, F12 frame) are not what this change is about: they differ between the "
-              "two checkouts by the other work merged in between (frame-graph barriers, shared ray-tracing "
-              "component) and by run-to-run noise on a shared 2-core machine.", ""]
+              "times (viewport frame, F12 frame) are not what this benchmark is about: they differ between the "
+              "two checkouts by whatever else differs between them and by run-to-run noise on a shared "
+              "2-core machine.", ""]
     (out_dir / "viewport_benchmark.md").write_text("\n".join(lines))
     print("\n".join(lines))
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--before", help="checkout of the commit before the change (git worktree)")
-    ap.add_argument("--after", default=str(REPO))
-    ap.add_argument("--out", default=str(REPO / "docs" / "results"))
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--before", help="checkout to compare against (a git worktree)")
+    ap.add_argument("--after", default=str(REPO), help="checkout measured as 'after' (default: this one)")
+    ap.add_argument("--before-label", default="a viewport that waits for F12 renders",
+                    help="what the before checkout is, for the report")
+    ap.add_argument("--after-label", default="the non-blocking viewport", help="what the after checkout is")
+    ap.add_argument("--out", default=str(REPO / "out" / "bench" / "viewport"),
+                    help="output folder (default: out/bench/viewport; the docs page: docs/results)")
     ap.add_argument("--measure", help="measure one checkout (child mode)")
     ap.add_argument("--json", help="child mode: write the numbers here")
     ap.add_argument("--report", nargs=2, metavar=("BEFORE_JSON", "AFTER_JSON"),
@@ -339,7 +351,7 @@ def main():
     args = ap.parse_args()
     if args.report:
         report(json.loads(Path(args.report[0]).read_text()), json.loads(Path(args.report[1]).read_text()),
-               Path(args.out))
+               Path(args.out), args.before_label, args.after_label)
         return
     if args.measure:
         res = measure(args.measure)
@@ -347,10 +359,10 @@ def main():
             Path(args.json).write_text(json.dumps(res))
         return
     if not args.before:
-        ap.error("--before CHECKOUT is required (git worktree add /tmp/gi_before f05937a)")
+        ap.error("--before CHECKOUT is required (git worktree add /tmp/gi_before COMMIT)")
     before = _run_child(args.before)
     after = _run_child(args.after)
-    report(before, after, Path(args.out))
+    report(before, after, Path(args.out), args.before_label, args.after_label)
 
 
 if __name__ == "__main__":

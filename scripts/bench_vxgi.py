@@ -1,9 +1,11 @@
 #!/usr/bin/env python3
 """VXGI (voxel cone tracing) measured against Cycles: accuracy, leaks, stability, demo sweeps.
 
-    cd /work/main && flock /tmp/gi_heavy.lock .venv/bin/python scripts/bench_vxgi.py
+    flock /tmp/gi_heavy.lock .venv/bin/python scripts/bench_vxgi.py     (from the repository root)
         [--accuracy] [--leak] [--stability] [--sweep] [--res 48] [--ref-spp 128] [--qualities 0,1,2,3]
-        [--out docs/results/vxgi] [--images [--img-res 40] [--img-quality 0]]
+        [--out DIR] [--images [--img-res 40] [--img-quality 0] [--img-out DIR]]
+
+Output folder ``--out``: default ``out/bench/vxgi/``.
 
 * ``--audit``: energy audit (q0/q1 of --qualities): a white furnace in the voxel domain (a
   closed box whose voxels show a known radiance L must give E = pi L) and the Cornell box's
@@ -25,8 +27,8 @@
 * ``--sweep``: scripts/gi_compare.py on every demo scene, DIRECT and VXGI at q0-q3 against
   the reference each models and "full" (relMSE, FLIP, time per frame, setup time,
   equal-error speed-up against Cycles' curve), into ``<out>/<scene>/``; ``<out>/sweep.md``.
-* ``--images``: docs/techniques/img/vxgi_cornell.png and vxgi_sunlit_room.png with the current
-  defaults: Cycles full ``--ref-spp`` | VXGI ``--img-quality`` | per-pixel relMSE (viridis,
+* ``--images``: ``<img-out>/vxgi_cornell.png`` and ``vxgi_sunlit_room.png`` (``--img-out``,
+  default the ``--out`` folder) with the current defaults: Cycles full ``--ref-spp`` | VXGI ``--img-quality`` | per-pixel relMSE (viridis,
   log10 1e-4..1) | GI_VXGI_Voxels, ``--img-res`` px, each panel scaled 4x; relMSE and
   mean / Cycles' mean printed and written to ``<out>/images.json``. Not part of the default run.
 With no section flag, --accuracy, --leak, --stability and --sweep run (--audit, --images only
@@ -185,11 +187,11 @@ def audit(o, out):
     return rows
 
 
-OLD_EDGE = {"vxgi_inject": {"edge_opacity": 0.05, "footprint_cap": 0.0}, "vxgi_trace": {"footprint_cap": 0.0}}
+NO_EDGE_MITIGATION = {"vxgi_inject": {"edge_opacity": 0.05, "footprint_cap": 0.0}, "vxgi_trace": {"footprint_cap": 0.0}}
 LEAK_CONFIGS = (
     ("no mitigation (thickness 0, edge opacity 0.05, no footprint cap)",
-     {"vxgi_voxelize": {"thickness": 0.0}, **OLD_EDGE}),
-    ("thickness 1, edge opacity 0.05, no footprint cap", OLD_EDGE),
+     {"vxgi_voxelize": {"thickness": 0.0}, **NO_EDGE_MITIGATION}),
+    ("thickness 1, edge opacity 0.05, no footprint cap", NO_EDGE_MITIGATION),
     ("thickness 0 (edge opacity 0.1, footprint cap 0.35)", {"vxgi_voxelize": {"thickness": 0.0}}),
     ("default (thickness 1, edge opacity 0.1, footprint cap 0.35)", {}),
     ("default, edge opacity 0.3", {"vxgi_inject": {"edge_opacity": 0.3}}),
@@ -371,9 +373,6 @@ def stability(o, out, frames=60):
     return row
 
 
-IMG_DIR = os.path.join(REPO, "docs", "techniques", "img")
-
-
 def _panel(img, scale=4):
     """(H, W, 3) display-encoded float, bottom-up -> top-down uint8, scaled by nearest neighbour."""
     from gi_preview.compare.imageio import to_uint8
@@ -383,7 +382,7 @@ def _panel(img, scale=4):
 
 
 def images(o, out):
-    """Side-by-side images of cornell and sunlit_room for docs/techniques/VXGI.md."""
+    """Side-by-side images of cornell and sunlit_room (the kind docs/techniques/VXGI.md shows)."""
     import bpy
     import numpy as np
     from PIL import Image, ImageDraw
@@ -413,7 +412,8 @@ def images(o, out):
         d = ImageDraw.Draw(pil)
         for k, (label, _p) in enumerate(panels):
             d.text((k * w + 2, 1), label, fill=(255, 255, 255))
-        path = os.path.join(IMG_DIR, f"vxgi_{scene}.png")
+        os.makedirs(o.img_out or out, exist_ok=True)
+        path = os.path.join(o.img_out or out, f"vxgi_{scene}.png")
         pil.save(path)
         row = {"scene": scene, "quality": o.img_quality, "res": o.img_res, "ref_spp": o.ref_spp,
                "relmse_full": metrics.relmse(img, ref),
@@ -526,7 +526,8 @@ def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     for s in ("audit", "accuracy", "leak", "stability", "sweep"):
         p.add_argument(f"--{s}", action="store_true")
-    p.add_argument("--images", action="store_true", help="regenerate docs/techniques/img/vxgi_{cornell,sunlit_room}.png")
+    p.add_argument("--images", action="store_true", help="write vxgi_{cornell,sunlit_room}.png into --img-out")
+    p.add_argument("--img-out", default="", help="folder of the --images figures (default: --out)")
     p.add_argument("--img-res", type=int, default=40)
     p.add_argument("--img-quality", type=int, default=0)
     p.add_argument("--res", type=int, default=48)
@@ -544,7 +545,8 @@ def main(argv=None):
     p.add_argument("--scenes", default=",".join(DEMOS))
     p.add_argument("--sweep-res", type=int, default=48)
     p.add_argument("--sweep-ref-spp", type=int, default=128)
-    p.add_argument("--out", default=os.path.join(REPO, "docs", "results", "vxgi"))
+    p.add_argument("--out", default=os.path.join(REPO, "out", "bench", "vxgi"),
+                   help="output folder (default: out/bench/vxgi)")
     o = p.parse_args(argv)
     o.qualities = [int(x) for x in o.qualities.split(",")]
     chosen_explicit = any(getattr(o, s) for s in ("audit", "accuracy", "leak", "stability", "sweep"))

@@ -3,7 +3,16 @@
 
     .venv/bin/python scripts/bench_world.py [--scenes hdri:forest,pavilion:courtyard,sky:MULTIPLE_SCATTERING]
         [--techniques PT,DIRECT,...] [--res 48] [--ref-spp 512] [--samples 16] [--pt-samples 64]
-        [--out docs/results/world]
+        [--out DIR]
+
+Output folder ``--out``: default ``out/bench/world/``. The documentation's world results
+(docs/results/world/, linked from its README.md) are regenerated on purpose with
+
+    .venv/bin/python scripts/bench_world.py --scenes all --res 40 --ref-spp 512 --samples 16 \
+        --pt-samples 64 --out docs/results/world
+
+(about 25 minutes on 2 cores; then delete docs/results/world/results.json, which no page
+links, and update the numbers README.md quotes).
 
 Scenes (``blender_tests/scenes_world.py``): ``hdri:NAME`` (one of the eight HDRIs Blender
 ships, through an Environment Texture rotated by a Mapping node), ``pavilion:NAME`` (the same
@@ -19,8 +28,9 @@ references "full" and "direct", and for every technique an F12-style render of
 direct), the image mean over Cycles' and the median frame time. Times are those of this
 machine's OpenGL (llvmpipe on a machine without a GPU): compare them as ratios.
 
-Writes ``<out>/results.json``, ``<out>/summary.md`` and per scene ``<out>/<scene>.png``: one
-row per technique, ours | Cycles | error (|ours - Cycles| x 4), tone-mapped.
+Writes ``<out>/results.json``, ``<out>/summary.md`` (with the command that made it) and per
+scene ``<out>/<scene>.png``: one row per technique, ours | Cycles | error (|ours - Cycles| x 4),
+tone-mapped.
 """
 from __future__ import annotations
 
@@ -76,7 +86,8 @@ def main(argv=None):
     p.add_argument("--ref-spp", type=int, default=512)
     p.add_argument("--samples", type=int, default=16)
     p.add_argument("--pt-samples", type=int, default=64)
-    p.add_argument("--out", default=os.path.join(REPO, "docs", "results", "world"))
+    p.add_argument("--out", default=os.path.join(REPO, "out", "bench", "world"),
+                   help="output folder (default: out/bench/world; the docs' results: docs/results/world)")
     a = p.parse_args(argv)
 
     sys.path.insert(0, HERE)
@@ -138,7 +149,7 @@ def main(argv=None):
         bpy_remove_scene(sc)
     with open(os.path.join(a.out, "results.json"), "w") as f:
         json.dump(results, f, indent=1)
-    write_summary(results, techs, os.path.join(a.out, "summary.md"))
+    write_summary(results, techs, os.path.join(a.out, "summary.md"), command_line(a))
     log(f"wrote {a.out}")
 
 
@@ -148,7 +159,17 @@ def bpy_remove_scene(sc):
     bpy.data.scenes.remove(sc)
 
 
-def write_summary(results, techs, path):
+def command_line(a) -> str:
+    """The command that makes this run's results (for summary.md)."""
+    out = os.path.abspath(a.out)
+    rel = os.path.relpath(out, REPO)
+    args = [f"--scenes {a.scenes}"] + ([f"--techniques {a.techniques}"] if a.techniques else []) + [
+        f"--res {a.res}", f"--ref-spp {a.ref_spp}", f"--samples {a.samples}", f"--pt-samples {a.pt_samples}",
+        f"--out {out if rel.startswith('..') else rel}"]
+    return ".venv/bin/python scripts/bench_world.py " + " ".join(args)
+
+
+def write_summary(results, techs, path, command="scripts/bench_world.py"):
     scenes = list(results["scenes"])
     lines = [f"# Techniques under HDRI, sky and procedural worlds, against Cycles", "",
              f"{results['res']}×{results['res']} px; Cycles references at {results['ref_spp']} spp (box filter, "
@@ -156,7 +177,7 @@ def write_summary(results, techs, path):
              f"relMSE against Cycles full (DIRECT: also against Cycles direct, in brackets); the second figure "
              f"is the image mean over Cycles'. Frame times are those of "
              f"`{results.get('device') or 'this machine'}`: compare them as ratios, not as milliseconds.", "",
-             "Made by `scripts/bench_world.py` (command in its docstring). Per scene, `<scene>.png` shows one row "
+             f"Made by `{command}`. Per scene, `<scene>.png` shows one row "
              "per technique (in the order of the table, top to bottom): ours | Cycles | error ×4.", ""]
     lines.append("| technique | " + " | ".join(scenes) + " |")
     lines.append("|---|" + "---|" * len(scenes))

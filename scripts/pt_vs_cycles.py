@@ -3,14 +3,15 @@ blender_tests/test_pt_vs_cycles.py (same scenes, same statistics, same threshold
 larger resolution, with images to look at.
 
 Run with the bpy module:  .venv/bin/python scripts/pt_vs_cycles.py [--res 128] [--batches 32]
-[--spp 16] [--ref-spp 1024] [--scenes a,b] [--out docs/results]
+[--spp 16] [--ref-spp 1024] [--scenes a,b] [--out DIR]
 
 Per scene: PT renders ``batches`` independent batches of ``spp`` samples; the Cycles
 reference (fair settings, cached under blender_tests/_artifacts/ref_cache) has ``ref-spp``.
 Pass = at most 1 % of pixels fail a two-sided t-test at alpha 0.01 with Šidák correction,
-and relMSE <= 1.5 x the pair's noise floor (see the test's docstring for why). Writes
-``pt_vs_cycles.md`` and, per scene, ``pt_vs_cycles/<scene>_{pt,cycles,err}.png``: PT, Cycles
-(both with Blender's Standard view) and the error map (|z| / t_crit, white = fails).
+and relMSE <= 1.5 x the pair's noise floor (see the test's docstring for why). Writes into
+``--out`` (default ``out/bench/pt_vs_cycles/``) ``pt_vs_cycles.md`` and, per scene,
+``pt_vs_cycles/<scene>_{pt,cycles,err}.png``: PT, Cycles (both with Blender's Standard view)
+and the error map (|z| / t_crit, white = fails).
 """
 from __future__ import annotations
 
@@ -42,9 +43,11 @@ def main():
     ap.add_argument("--spp", type=int, default=16)
     ap.add_argument("--ref-spp", type=int, default=1024)
     ap.add_argument("--scenes", default=",".join(T.SCENES))
-    ap.add_argument("--out", default=str(REPO / "docs" / "results"))
+    ap.add_argument("--out", default=str(REPO / "out" / "bench" / "pt_vs_cycles"),
+                    help="output folder (default: out/bench/pt_vs_cycles)")
     a = ap.parse_args()
     out = Path(a.out)
+    out.mkdir(parents=True, exist_ok=True)
     img_dir = out / "pt_vs_cycles"
     ctx = moderngl.create_standalone_context(backend="egl", require=430)
     rows = []

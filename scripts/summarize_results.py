@@ -1,6 +1,6 @@
 """Markdown tables of one or more gi_compare runs (results.json), for the docs pages.
 
-    python scripts/summarize_results.py docs/results/direct/*/results.json > docs/results/direct/summary.md
+    python scripts/summarize_results.py out/bench/direct/*/results.json > out/bench/direct/summary.md
 
 First table, per technique, quality and reference: samples, ms per frame, time of the
 accumulated image, one-time setup (export, GPU upload, BVH, shader compilation; never in
