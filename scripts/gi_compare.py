@@ -5,11 +5,13 @@ Runs as
     blender -b scene.blend -P scripts/gi_compare.py -- [SCENE] ARGS
     python scripts/gi_compare.py SCENE ARGS            (with the PyPI ``bpy`` module)
 where SCENE is a .blend path or a built-in demo scene name (cornell, glossy_spheres,
-sunlit_room, emissive_panel, many_lights). Under ``blender -b file.blend`` SCENE may be left
+sunlit_room, emissive_panel, many_lights, courtyard_loft). Under ``blender -b file.blend`` SCENE may be left
 out: the file's current scene is used.
 
 ARGS
   --techniques A,B      technique ids (default: all available)
+  --denoiser D          AUTO (default: each technique's own filter, as Blender's Technique
+                        Default: SVGF for RESTIR_GI, none for the others), NONE, ATROUS or SVGF
   --quality LEVELS      e.g. 0,1,2 or all (default: all levels of each technique)
   --res N               width in pixels (height keeps the scene's aspect; demo scenes are square)
   --ref-spp N           Cycles reference samples (default 256)
@@ -100,6 +102,10 @@ def parse_args(argv: list[str], scene_optional: bool):
     p.add_argument("scene", nargs="?" if scene_optional else None,
                    help=".blend path or demo scene name (" + ", ".join(DEMOS) + ")")
     p.add_argument("--techniques", default="")
+    p.add_argument("--denoiser", default="AUTO", type=str.upper, choices=("AUTO", "NONE", "ATROUS", "SVGF"),
+                   help="filter that ends each technique's frames, as the render panel's Denoiser: AUTO "
+                        "(default) = each technique's own default, as in Blender (SVGF for RESTIR_GI, none "
+                        "for the others); NONE shows every technique raw")
     p.add_argument("--quality", default="all")
     p.add_argument("--res", type=int, default=None)
     p.add_argument("--ref-spp", type=int, default=256)
@@ -234,6 +240,7 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
     reference.ensure_oiio()
     if session is None:
         session = importlib.import_module(pn + ".render.session")
+    techniques = importlib.import_module(pn + ".render.techniques")
     if scene is None:
         demo = None
         if opts.scene and not opts.scene.lower().endswith(".blend"):
@@ -351,17 +358,19 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
     gl_call = gl.get_gl().call
     entries, images = [], {}
     for i, (tech, q) in enumerate(plan):
-        log(f"[{i + 1}/{len(plan)}] {tech} q{q}: {opts.frames} render(s) of {opts.samples} sample(s) ...")
+        denoiser = techniques.resolve_denoiser(tech, opts.denoiser)
+        log(f"[{i + 1}/{len(plan)}] {tech} q{q}{'' if denoiser == 'NONE' else ' + ' + denoiser}: "
+            f"{opts.frames} render(s) of {opts.samples} sample(s) ...")
         # a fresh GPU session per row, so every row pays (and reports) its own one-time setup:
         # GPU upload, BVH build, shader compilation; then one untimed warm-up render and the
         # timed ones (time_ms never includes setup)
         gl_call(session.release_all)
         t0 = time.perf_counter()
-        warm = session.render(sd, technique=tech, quality=q, samples=opts.samples)
+        warm = session.render(sd, technique=tech, quality=q, samples=opts.samples, denoiser=denoiser)
         warm_ms = (time.perf_counter() - t0) * 1e3
         results = []
         for _ in range(opts.frames):
-            results.append(session.render(sd, technique=tech, quality=q, samples=opts.samples))
+            results.append(session.render(sd, technique=tech, quality=q, samples=opts.samples, denoiser=denoiser))
         res = results[-1]
         frame_ms = statistics.median(float(r.frame_ms) for r in results)
         total_ms = statistics.median(float(r.total_ms) for r in results)
@@ -398,7 +407,7 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
             sps = {b: sweep.equal_error_speedup(m["relmse"], time_ms, cur,
                                                 name=reference.BASELINE_LABELS[b])
                    for b, cur in baseline_curves_for(k).items()}
-            e = {"technique": tech, "quality": q, "reference": k, "time_ms": time_ms,
+            e = {"technique": tech, "quality": q, "denoiser": denoiser, "reference": k, "time_ms": time_ms,
                  "frame_ms": frame_ms, "total_ms": total_ms, "samples": int(getattr(res, "samples", 1)),
                  "setup_ms": setup_ms,
                  "setup": {"export_ms": export_ms, "renderer_ms": float(renderer_setup),
@@ -445,6 +454,8 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
         "run": {"date": datetime.datetime.now().isoformat(timespec="seconds"),
                 "blender": _b.app.version_string, "frames": opts.frames, "samples": opts.samples,
                 "ref_spp": opts.ref_spp, "reference_mode": opts.reference, "resolution": f"{w}x{h}",
+                "device": "GI Preview on {} ({}); Cycles on the CPU; EEVEE on Blender's own OpenGL context".format(
+                    gl.get_gl().info.get("GL_RENDERER"), gl.get_gl().info.get("GL_VERSION")),
                 "baselines": ",".join(baselines)},
         "reference": {**refs[primary].info()},
         "references": {k: r.info() for k, r in refs.items()},

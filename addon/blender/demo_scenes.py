@@ -29,6 +29,10 @@ DEMO_SCENES: tuple[tuple[str, str, str], ...] = (
     ("many_lights", "Many Lights",
      "A floor and a few objects lit by 256 small point lights of many colours and three "
      "emissive strips"),
+    ("courtyard_loft", "Courtyard Loft",
+     "An open-fronted loft lit only by Blender's bundled courtyard HDRI: a texture-set floor "
+     "(colour and roughness images), a glossy ball and a block; most of the back of the room "
+     "sees the sky only by bounced light"),
 )
 _IDS = tuple(d[0] for d in DEMO_SCENES)
 SCENE_PREFIX = "GI Preview Demo: "
@@ -296,9 +300,75 @@ def _many_lights(b: _Builder):
     b.scene.world = make_world(b.n("night"), (0.02, 0.02, 0.03), 1.0)
 
 
+def _checker_image(name: str, size: int = 128, tiles: int = 2):
+    """A packed sRGB image: warm light and dark checker tiles in RGB, and a roughness map in
+    the alpha-free G channel of a second image (the layout of a texture set)."""
+    u = (np.arange(size) + 0.5) / size
+    uu, vv = np.meshgrid(u, u)
+    check = ((np.floor(uu * tiles) + np.floor(vv * tiles)) % 2)[..., None]
+    col = np.where(check > 0, (0.70, 0.62, 0.50), (0.16, 0.12, 0.10))
+    rough = 0.25 + 0.55 * check[..., 0]
+    images = []
+    for suffix, rgb, colorspace in (("color", col, "sRGB"),
+                                    ("roughness", np.stack([rough] * 3, -1), "Non-Color")):
+        img = bpy.data.images.new(f"{name}.{suffix}", size, size, alpha=True)
+        img.colorspace_settings.name = colorspace
+        px = np.concatenate([rgb, np.ones((size, size, 1))], -1).astype(np.float32)
+        img.pixels.foreach_set(px.ravel())
+        img.pack()
+        images.append(img)
+    return images
+
+
+def _textured_floor(b: _Builder):
+    m = make_principled(b.n("floor"), (0.5, 0.5, 0.5), 0.5)
+    nt = m.node_tree
+    bsdf = next(n for n in nt.nodes if n.type == "BSDF_PRINCIPLED")
+    col_img, rough_img = _checker_image(b.n("floor"))
+    for img, socket in ((col_img, "Base Color"), (rough_img, None)):  # the UVs are in metres:
+        t = nt.nodes.new("ShaderNodeTexImage")                         # one repeat per metre
+        t.image = img
+        if socket is not None:
+            nt.links.new(t.outputs["Color"], bsdf.inputs[socket])
+        else:
+            sep = nt.nodes.new("ShaderNodeSeparateColor")
+            nt.links.new(t.outputs["Color"], sep.inputs["Color"])
+            nt.links.new(sep.outputs["Green"], bsdf.inputs["Roughness"])
+    return m
+
+
+def _courtyard_loft(b: _Builder):
+    wall = make_principled(b.n("plaster"), (0.78, 0.75, 0.70), 0.9, specular=0.3)
+    x0, x1, y0, y1, h = -2.5, 2.5, -2.0, 2.5, 2.6
+    # open towards -y (the camera's side): the sky comes in through the whole front
+    b.room("loft", (x0, y0, 0), (x1, y1, h), {"floor": _textured_floor(b), "ceiling": wall, "-x": wall,
+                                              "+x": wall, "+y": wall}, skip=("-y",))
+    b.box("block", (0.9, 0.9, 0.9), make_principled(b.n("terracotta"), (0.62, 0.28, 0.16), 0.7),
+          location=(-1.0, 1.2, 0.45), rotation=(0, 0, math.radians(25)))
+    b.sphere("ball", 0.45, make_principled(b.n("lacquer"), (0.15, 0.3, 0.65), 0.12), (0.9, 0.6, 0.45))
+    b.camera((0.3, -3.6, 1.3), (0.0, 1.2, 0.9), lens=24.0)
+    wo = bpy.data.worlds.new(b.n("courtyard"))
+    _fresh_tree(wo)
+    nt = wo.node_tree
+    out = nt.nodes.new("ShaderNodeOutputWorld")
+    bg = nt.nodes.new("ShaderNodeBackground")
+    env = nt.nodes.new("ShaderNodeTexEnvironment")
+    import os
+    path = os.path.join(bpy.utils.system_resource("DATAFILES", path="studiolights/world"), "courtyard.exr")
+    env.image = bpy.data.images.load(path, check_existing=True)
+    mp = nt.nodes.new("ShaderNodeMapping")
+    mp.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(200.0))
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    nt.links.new(tc.outputs["Generated"], mp.inputs["Vector"])
+    nt.links.new(mp.outputs["Vector"], env.inputs["Vector"])
+    nt.links.new(env.outputs["Color"], bg.inputs["Color"])
+    nt.links.new(bg.outputs["Background"], out.inputs["Surface"])
+    b.scene.world = wo
+
+
 _BUILDERS = {"cornell": _cornell, "glossy_spheres": _glossy_spheres,
              "sunlit_room": _sunlit_room, "emissive_panel": _emissive_panel,
-             "many_lights": _many_lights}
+             "many_lights": _many_lights, "courtyard_loft": _courtyard_loft}
 
 
 def _engine_registered(idname: str) -> bool:

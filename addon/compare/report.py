@@ -25,6 +25,13 @@ def _bound(s: dict) -> str:
     return "n/a"
 
 
+def technique_label(e: dict) -> str:
+    """The technique of a results entry as the render panel names it: "RESTIR_GI + SVGF"
+    when a filter ends its frames."""
+    d = str(e.get("denoiser") or "NONE")
+    return str(e.get("technique")) + ("" if d == "NONE" else f" + {d}")
+
+
 def entry_id(technique: str, quality, reference: str) -> str:
     """The key tying a results entry to its images: ``TECH_q<quality>_<reference>``."""
     return f"{technique}_q{quality}_{reference}"
@@ -134,7 +141,7 @@ def build_html(*, title: str, results: dict, images: dict | None = None, chart_s
             f'<span title="{html.escape(s.get("reason", ""))}">n/a</span>'
         nf = e.get("nonfinite_pixels", 0)
         nf_s = f'<span class="warn">{nf}</span>' if nf else "0"
-        p.append(f'<tr><td class="l">{html.escape(str(e.get("technique")))}</td><td>{_num(e.get("quality"), "{}")}</td>'
+        p.append(f'<tr><td class="l">{html.escape(technique_label(e))}</td><td>{_num(e.get("quality"), "{}")}</td>'
                  f'<td class="l">{html.escape(str(e.get("reference")))}</td><td>{_num(e.get("frame_ms"), "{:.2f}")}</td>'
                  f'<td>{_num(e.get("samples"), "{}")}</td><td>{_num(e.get("time_ms"), "{:.1f}")}</td>'
                  f'<td>{_num(e.get("setup_ms"), "{:.0f}")}</td><td>{_num(e.get("relmse"))}</td><td>{_num(e.get("flip"))}</td><td>{_num(e.get("ssim"), "{:.4f}")}</td>'
@@ -144,7 +151,7 @@ def build_html(*, title: str, results: dict, images: dict | None = None, chart_s
                if (e.get("speedup") or {}).get("speedup") is None and (e.get("speedup") or {}).get("reason")]
     if reasons:
         p.append('<ul class="skipped">' + "".join(
-            f"<li>{html.escape(str(e['technique']))} q{e.get('quality')} vs {html.escape(str(e.get('reference')))}: "
+            f"<li>{html.escape(technique_label(e))} q{e.get('quality')} vs {html.escape(str(e.get('reference')))}: "
             f"no speed-up: {html.escape(r)}</li>" for e, r in reasons) + "</ul>")
 
     # ---- equal-error speed-ups against every baseline
@@ -173,7 +180,7 @@ def build_html(*, title: str, results: dict, images: dict | None = None, chart_s
                                  f' <span class="meta">({_num(s.get("cycles_spp"), "{:.2g}")} spp)</span></td>')
                 else:
                     cells.append(f'<td><span title="{html.escape(s.get("reason", ""))}">{_bound(s)}</span></td>')
-            p.append(f'<tr><td class="l">{html.escape(str(e.get("technique")))}</td><td>{_num(e.get("quality"), "{}")}</td>'
+            p.append(f'<tr><td class="l">{html.escape(technique_label(e))}</td><td>{_num(e.get("quality"), "{}")}</td>'
                      f'<td>{_num(e.get("time_ms"), "{:.1f}")}</td><td>{_num(e.get("relmse"))}</td>{"".join(cells)}</tr>')
         p.append("</table>")
 
