@@ -242,3 +242,38 @@ def test_stats_line_groups_skipped_passes_by_effect():
     text = engine_mod.stats_text(res, 16)
     assert "glossy: no glossy surface in view; shadows: no light casts shadows" in text
     assert "ssr_trace" not in text and "4/16 samples" in text and "(Medium)" in text
+
+
+# settings that resize a pass's resources: changed between two frames of one session (as in
+# the viewport), the next frame renders with them
+RESIZING = (("VXGI", "voxel_resolution", 16), ("VXGI", "voxel_cascades", 1), ("LPV", "lpv_cells", 8),
+            ("LPV", "lpv_cascades", 1), ("RSM", "rsm_resolution", 32), ("DDGI", "probe_count", 3),
+            ("DIRECT", "shadow_resolution", 64))
+
+
+@pytest.mark.parametrize("tid,prop,value", RESIZING)
+def test_resizing_setting_changes_mid_session(tid, prop, value):
+    from _helpers import export
+
+    sc = _probe_scene()
+    key = f"ui_resize_{prop}"
+    try:
+        s = sc.gi_preview
+        s.technique, s.quality = tid, 0
+        data = export(sc)
+        session.render(data, tid, 0, 1, session=key, keep_history=True, warmup=False,
+                       params=engine_mod._pass_params(sc, tid))
+        setattr(s, prop, value)
+        params = engine_mod._pass_params(sc, tid)
+        res = session.render(data, tid, 0, 1, session=key, keep_history=True, continue_accumulation=True,
+                             warmup=False, params=params)
+        assert np.isfinite(res.image).all() and res.image[..., :3].max() > 0
+        assert res.samples == 1  # the accumulation starts again (the graph's state is rebuilt)
+        (pass_name, param), = [t for t in properties.SETTINGS_BY_PROP[prop].targets if t[0] in params]
+        from gi_preview.render.gl import get_gl
+        got = get_gl().call(lambda: session._sessions[key].graphs[(tid, 0, "NONE", False)][1]
+                            .find(pass_name).props[param])
+        assert got == value
+    finally:
+        session.release_session(key).result(timeout=60)
+        bpy.data.scenes.remove(sc)
