@@ -131,9 +131,10 @@ class Setting:
     soft_max: float | None = None
     subtype: str = "NONE"
     filter: str | None = None
+    zero: str = "0 uses the Quality level's value"
 
     def make(self):
-        desc = f"{self.description}. 0 uses the Quality level's value"
+        desc = f"{self.description}. {self.zero}"
         if self.kind == "FLOAT":
             return bpy.props.FloatProperty(
                 name=self.label, description=desc, default=0.0, min=0.0, max=float(self.max),
@@ -150,8 +151,8 @@ SHADOWED = ("DIRECT", "SSAO", "HBAO", "SSDO", "SSR", "RSM", "LPV", "VXGI", "REST
 
 SETTINGS = (
     Setting("probe_spacing", "Probe Spacing",
-            "Distance between neighbouring probes (smaller: finer light, slower); overrides Probe Count",
-            (("probe_trace", "spacing"),), PROBES, "FLOAT", 1e4, 10.0, "DISTANCE"),
+            "Distance between neighbouring probes (smaller: finer light, slower)",
+            (("probe_trace", "spacing"),), PROBES, "FLOAT", 1e4, 10.0, "DISTANCE", zero="0 uses Probe Count"),
     Setting("probe_count", "Probe Count", "Probes along the longest side of the scene",
             (("probe_trace", "probes"),), PROBES, max=64, soft_max=32),
     Setting("probe_rays", "Rays per Probe", "Rays each probe traces per frame (more: less flicker, slower)",
