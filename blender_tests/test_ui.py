@@ -231,7 +231,7 @@ def test_compare_table_names_each_rows_reference(scene):
     labels = layout.labels
     assert "Reference" in labels
     assert labels[labels.index("DDGI q1") + 1] == "Full 256"
-    assert labels[labels.index("SSAO q1") + 1] == "Ao 64"
+    assert labels[labels.index("SSAO q1") + 1] == "AO 64"
 
 
 def test_stats_line_groups_skipped_passes_by_effect():

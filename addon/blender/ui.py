@@ -69,7 +69,7 @@ def draw_settings(layout, s, settings):
 class GIPREVIEW_RENDER_PT_technique_settings(GIPreviewPanel, bpy.types.Panel):
     """The selected technique's settings (0 keeps the Quality level's value)."""
 
-    bl_label = "Settings"
+    bl_label = "Technique Settings"
     bl_parent_id = "GIPREVIEW_RENDER_PT_technique"
 
     @classmethod
@@ -79,9 +79,6 @@ class GIPREVIEW_RENDER_PT_technique_settings(GIPreviewPanel, bpy.types.Panel):
         s = context.scene.gi_preview
         info = _info(s.technique)
         return bool(properties.technique_settings(s.technique)) or (info is not None and info.family == "probes")
-
-    def draw_header(self, context):
-        self.layout.label(text=f"{properties.technique_label(context.scene.gi_preview.technique)} Settings")
 
     def draw(self, context):
         layout = self.split_layout()
@@ -119,6 +116,9 @@ class GIPREVIEW_RENDER_PT_denoising(GIPreviewPanel, bpy.types.Panel):
         draw_settings(layout, s, extra)
 
 
+REFERENCE_NAMES = {i[0]: i[1] for i in properties.COMPARE_REFERENCE_ITEMS}
+
+
 class GIPREVIEW_RENDER_PT_compare(GIPreviewPanel, bpy.types.Panel):
     bl_label = "Compare with Cycles"
     bl_parent_id = "GIPREVIEW_RENDER_PT_technique"
@@ -147,8 +147,8 @@ class GIPREVIEW_RENDER_PT_compare(GIPreviewPanel, bpy.types.Panel):
         for tech in sorted(res):
             e = res[tech]
             grid.label(text=f"{properties.technique_label(tech)} q{e.get('quality', '')}")
-            ref = e.get("reference")
-            grid.label(text=f"{str(ref).replace('_', ' ').title()} {e.get('ref_spp', '')}".strip() if ref else "-")
+            ref = REFERENCE_NAMES.get(str(e.get("reference", "")).upper(), e.get("reference"))
+            grid.label(text=f"{ref} {e.get('ref_spp', '')}".strip() if ref else "-")
             grid.label(text=_fmt(e.get("relmse")))
             grid.label(text=_fmt(e.get("flip")))
             grid.label(text=_fmt(e.get("ssim"), "{:.3f}"))
