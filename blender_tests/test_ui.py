@@ -277,3 +277,37 @@ def test_resizing_setting_changes_mid_session(tid, prop, value):
     finally:
         session.release_session(key).result(timeout=60)
         bpy.data.scenes.remove(sc)
+
+
+def test_viewport_restarts_when_a_setting_changes(monkeypatch):
+    """A converged Rendered view starts accumulating again when a technique setting changes,
+    and its next frame renders with the new pass parameter."""
+    from gi_preview.blender.demo_scenes import build_demo
+    from gi_preview.render.gl import get_gl
+    from test_engine import draw_until_idle, fake_gpu_modules, fake_view
+
+    fake_gpu_modules(monkeypatch)
+    sc = build_demo("cornell", resolution=24)
+    eng = None
+    try:
+        s = sc.gi_preview
+        s.technique, s.quality, s.viewport_samples = "SSAO", 0, 2
+        with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
+            dg = bpy.context.evaluated_depsgraph_get()
+        ctx, eng = fake_view(sc, dg, width=32, height=24)
+        engine_mod.view_update(eng, ctx, dg)
+        draw_until_idle(eng, ctx, dg)
+        assert eng._viewport.count == 2
+        s.ao_distance = 0.25
+        engine_mod.view_draw(eng, ctx, dg)
+        assert eng._viewport.count == 0 and eng._viewport.future is not None
+        draw_until_idle(eng, ctx, dg)
+        assert eng._viewport.count == 2
+        key = eng._viewport.session_key
+        radius = get_gl().call(lambda: session._sessions[key].graphs[("SSAO", 0, "NONE", False)][1]
+                               .find("ssao").props["radius"])
+        assert radius == 0.25
+    finally:
+        if eng is not None:
+            eng._viewport.free()
+        bpy.data.scenes.remove(sc)
