@@ -97,6 +97,39 @@ def _filter_options(scene) -> dict:
     return {"denoiser": str(getattr(s, "denoiser", "NONE")), "use_taa": bool(getattr(s, "use_taa", False))}
 
 
+def _pass_params(scene, technique: str) -> dict:
+    """The technique settings of the Render Properties (those not left at 0, "the Quality
+    level's value"), as pass parameters for ``session.render(params=...)``."""
+    from .properties import pass_overrides
+
+    return pass_overrides(scene.gi_preview, technique)
+
+
+def skipped_text(res) -> str:
+    """What the planner left out, by effect with why ("glossy: no glossy surface in view"),
+    rather than by internal pass name (passes of one effect are listed once)."""
+    groups: dict = {}
+    for sp in res.skipped_passes:
+        eff = ", ".join(str(e).replace("_", " ") for e in sp.effects) or "other"
+        groups.setdefault(eff, [])
+        if sp.reason not in groups[eff]:
+            groups[eff].append(sp.reason)
+    return "; ".join(f"{e}: {', '.join(r)}" for e, r in groups.items())
+
+
+def stats_text(res, target: int | None = None) -> str:
+    """The status-bar line of a render: technique, quality, samples (of ``target`` in the
+    viewport), frame time, and the skipped effects (``skipped_text``)."""
+    from .properties import QUALITY_ITEMS, technique_label
+
+    quality = {v: n for _i, n, _d, v in QUALITY_ITEMS}.get(int(res.quality), f"q{res.quality}")
+    samples = f"{res.samples}/{target}" if target else f"{res.samples}"
+    text = (f"GI Preview {technique_label(res.technique)} ({quality}) | {samples} samples | "
+            f"{res.frame_ms:.1f} ms/frame")
+    skipped = skipped_text(res)
+    return f"{text} | skipped {skipped}" if skipped else text
+
+
 def final_render(engine, depsgraph):
     if display_queue:
         label, image = display_queue.pop(0)
@@ -122,7 +155,7 @@ def final_render(engine, depsgraph):
         res = session.render(data, technique, quality, samples, progress=engine.update_progress,
                              cancel=engine.test_break, keep_history=bool(engine.is_animation),
                              session="final", camera_cut=True if first else None, warmup=first,
-                             **_filter_options(scene))
+                             params=_pass_params(scene, technique), **_filter_options(scene))
     except session.Cancelled:
         return
     except (GLUnavailableError, SceneError, ShaderError, ValueError) as exc:
@@ -164,7 +197,7 @@ def final_render(engine, depsgraph):
     engine.end_result(result)
     last_render.clear()
     last_render.update(info)
-    engine.update_stats("", res.stats_line())
+    engine.update_stats("", stats_text(res))
     for s in res.skipped_passes:
         log.info("GI Preview: skipped pass %s (%s)", s.name, s.reason)
 
@@ -307,8 +340,9 @@ def view_draw(engine, context, depsgraph):
     technique, quality, _ = _settings(scene)
     target = int(scene.gi_preview.viewport_samples)
     show_probes = bool(getattr(scene.gi_preview, "show_probes", False))  # probe overlay (probe_overlay.py)
+    params = _pass_params(scene, technique)
     key = (technique, quality, w, h, cam.view.tobytes(), cam.projection.tobytes(), st.data_version,
-           tuple(_filter_options(scene).values()), show_probes)
+           tuple(_filter_options(scene).values()), show_probes, session.params_key(params))
     if key != st.key:
         st.key, st.count = key, 0
     # a finished frame: show it (even one of an older view: the newest image there is)
@@ -329,8 +363,7 @@ def view_draw(engine, context, depsgraph):
             st.last_frame_ms = res.frame_ms
             if st.future_key == st.key:
                 st.count = res.samples
-            engine.update_stats("", f"GI Preview {res.technique}: {res.samples}/{target} samples, "
-                                    f"{res.frame_ms:.1f} ms/frame")
+            engine.update_stats("", stats_text(res, target))
     # the next frame, unless one is in flight or the view has converged
     # (after an error, only once the view, settings or scene changed: no retry loop)
     if st.future is None and st.count < target and (st.error is None or st.error_key != st.key):
@@ -340,7 +373,7 @@ def view_draw(engine, context, depsgraph):
             st.future = submit(
                 data, technique, quality, 1, continue_accumulation=True, keep_history=True,
                 session=st.session_for(context.region_data), on_done=_redraw_callback(engine, st),
-                **_filter_options(scene))
+                params=params, **_filter_options(scene))
             st.future_key = st.key
             st.error = None
         except (GLUnavailableError, ValueError) as exc:

@@ -129,7 +129,7 @@ class Session:
                      cancel: threading.Event | None = None, progress=None,
                      continue_accumulation: bool = False, keep_history: bool = False,
                      camera_cut: bool | None = None, warmup: bool | None = None,
-                     denoiser: str = "NONE", use_taa: bool = False):
+                     denoiser: str = "NONE", use_taa: bool = False, params: dict | None = None):
         """Render ``samples`` accumulated frames as a generator: it yields after every frame
         (warm-up frames included) so the GL thread can serve other sessions in between, and
         returns the RenderResult (``StopIteration.value``).
@@ -139,13 +139,19 @@ class Session:
         (lights, materials, geometry, transforms, textures) reset the history of the passes
         that declare them. warmup: run the graph's warm-up frames before accumulating (default:
         for a fresh render that keeps no history, i.e. F12; the first frame of an animation
-        asks for it explicitly; the viewport shows the convergence instead)."""
+        asks for it explicitly; the viewport shows the convergence instead). params: pass
+        parameters (``{pass name: {param: value}}``) over the quality level's values (the
+        scene's technique settings); given, the graph holds exactly these on top of its
+        quality ladder (a parameter no longer given returns to the ladder's value); None
+        leaves the graph's parameters as they are (:func:`set_pass_properties`)."""
         validate_scene(scene)
         t_start = time.perf_counter()
         setup0 = self._setup_clock()
         analysis = analyse(scene)
         denoiser = techniques.resolve_denoiser(technique, denoiser)  # "AUTO": the technique's default
         tech, graph = self._graph(technique, quality, denoiser, use_taa)
+        if params is not None:
+            apply_overrides(graph, params)
         changes = self.gpu_scene.update(scene)
         size = (scene.width, scene.height)
         if self.rc is None:
@@ -162,7 +168,8 @@ class Session:
         view = cam.view.astype(np.float64)
         proj = cam.projection.astype(np.float64)
         vp = proj @ view
-        acc_key = (technique, quality, denoiser, use_taa, size, self.gpu_scene.version, vp.astype(np.float32).tobytes())
+        acc_key = (technique, quality, denoiser, use_taa, size, self.gpu_scene.version, vp.astype(np.float32).tobytes(),
+                   params_key(params))
         fresh = not (continue_accumulation and acc_key == self.acc_key)
         if fresh:
             self.acc_count = 0
@@ -314,6 +321,29 @@ class Session:
             self.rc.resources.release()
         self.gpu_scene.release()
         self.programs.release()
+
+
+def params_key(params: dict | None) -> tuple:
+    """A hashable form of ``{pass name: {param: value}}`` (accumulation and viewport keys)."""
+    return tuple(sorted((p, tuple(sorted(v.items()))) for p, v in (params or {}).items()))
+
+
+def apply_overrides(graph, params: dict):
+    """Hold ``params`` (``{pass name: {param: value}}``) over the graph's own values: each
+    pass's parameters as built (its quality ladder) are kept on the graph the first time, and
+    every call sets the pass to those plus ``params``, so a parameter left out returns to its
+    ladder value. Passes or parameters the graph does not have are ignored (one settings
+    table serves every technique). A change marks the pass's parameters changed (its
+    history resets, as for any parameter change)."""
+    base = getattr(graph, "_base_props", None)
+    if base is None:
+        base = {p.name: p.get_properties() for p in graph}
+        graph._base_props = base
+    for p in graph:
+        want = dict(base.get(p.name, {}))
+        declared = {d.name for d in p.params}
+        want.update({k: v for k, v in params.get(p.name, {}).items() if k in declared})
+        p.set_properties(want)  # marks the pass changed only where a value differs
 
 
 def _get_session(key) -> Session:
