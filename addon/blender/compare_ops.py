@@ -22,7 +22,7 @@ view transform.
 
 The metrics of the last compare per technique are kept on the scene as JSON in
 ``scene.gi_preview_comparison.results_json`` (PropertyGroup ``GIPreviewComparison``, attached
-by ``register_props()``), and ``draw_comparison(layout, scene)`` draws them as a table.
+by ``register_props()``); the Compare sub-panel (ui.py) draws them as a table.
 
 Long renders: invoked from the UI, the operator runs in the background (``CompareJob``):
 the GI Preview render goes to the GL thread without blocking (``session.submit_render``)
@@ -172,6 +172,19 @@ def _reference_kind(technique: str, choice: str) -> str:
     return "full"
 
 
+def _scene_defaults(op, scene):
+    """Reference kind and samples not given to the operator come from the Compare
+    sub-panel's scene settings (also when run from F3 search or a script)."""
+    gp = getattr(scene, "gi_preview", None)
+    props = getattr(op, "properties", None)
+    if gp is None or props is None:
+        return
+    if not props.is_property_set("reference") and hasattr(gp, "compare_reference"):
+        op.reference = gp.compare_reference
+    if not props.is_property_set("ref_spp") and hasattr(gp, "compare_samples"):
+        op.ref_spp = int(gp.compare_samples)
+
+
 class GIPREVIEW_OT_compare(bpy.types.Operator):
     """Render the scene with GI Preview and with Cycles (cached reference), and show the error map, a side-by-side image and the metrics"""
 
@@ -201,6 +214,7 @@ class GIPREVIEW_OT_compare(bpy.types.Operator):
     # ---------------------------------------------------------------- steps
     def _make_steps(self, context):
         scene = context.scene
+        _scene_defaults(self, scene)
         st = self._state = {"scene": scene}
         tech, quality, samples = _settings(scene)
         st.update(technique=tech, quality=quality, samples=samples,
@@ -216,7 +230,10 @@ class GIPREVIEW_OT_compare(bpy.types.Operator):
             st["export_ms"] = (time.perf_counter() - t0) * 1e3
             st["fingerprint"] = sd.fingerprint()
             st["size"] = (sd.width, sd.height)
-            res = session.render(sd, technique=tech, quality=quality, samples=samples)
+            from .engine import _filter_options, _pass_params
+            # as F12 renders it: the technique settings and the filters of the render panel
+            res = session.render(sd, technique=tech, quality=quality, samples=samples,
+                                 params=_pass_params(scene, tech), **_filter_options(scene))
             st["ours"] = res
 
         def render_ref():
@@ -424,45 +441,13 @@ class CompareJob:
 
 
 def _fmt(v, f="{:.4g}"):
+    """A metric for the Compare table ("-" when missing)."""
     if v is None:
         return "-"
     try:
         return f.format(v)
     except (TypeError, ValueError):
         return str(v)
-
-
-def draw_comparison(layout, scene):
-    """The metrics table (technique, relMSE, FLIP, SSIM, ms/frame, setup ms) and the compare
-    button. ms/frame is the per-frame time; setup ms the one-time scene setup (export, GPU
-    upload, BVH, shader compilation) of that comparison, shown apart ("-" when the stored
-    entry has none)."""
-    col = layout.column(align=True)
-    col.operator(GIPREVIEW_OT_compare.bl_idname, icon="IMAGE_REFERENCE")
-    res = load_results(scene)
-    if not res:
-        col.label(text="No comparison yet", icon="INFO")
-        return
-    box = layout.box()
-    head = box.row()
-    for title in ("Technique", "relMSE", "FLIP", "SSIM", "ms/frame", "setup ms"):
-        head.label(text=title)
-    for tech in sorted(res):
-        e = res[tech]
-        row = box.row()
-        row.label(text=f"{tech} q{e.get('quality', '')}")
-        row.label(text=_fmt(e.get("relmse")))
-        row.label(text=_fmt(e.get("flip")))
-        row.label(text=_fmt(e.get("ssim"), "{:.3f}"))
-        row.label(text=_fmt(e.get("ms_per_frame"), "{:.1f}"))
-        row.label(text=_fmt(e.get("setup_ms"), "{:.0f}"))
-    last = res.get(getattr(scene.gi_preview_comparison, "last_technique", ""), None) \
-        if hasattr(scene, "gi_preview_comparison") else None
-    if last:
-        box.label(text=f"Reference: Cycles {last.get('reference')} {last.get('ref_spp')} spp, "
-                       f"{_fmt(last.get('ref_time_ms'), '{:.0f}')} ms", icon="RENDER_STILL")
-        if last.get("nonfinite_pixels"):
-            box.label(text=f"{last['nonfinite_pixels']} non-finite pixels", icon="ERROR")
 
 
 classes = (GIPreviewComparison, GIPREVIEW_OT_compare)
