@@ -703,7 +703,8 @@ def test_demo_scene_builds_and_exports(scene, name):
     assert (sc.render.resolution_x, sc.render.resolution_y) == (40, 40)
     sd = export(sc)
     assert sd.camera is not None and 0 < sd.triangle_count < 50_000
-    assert sd.lights or any(m.is_emissive for m in sd.materials)
+    world_lit = sd.world is not None and float(np.max(sd.world.color)) > 0.0
+    assert sd.lights or any(m.is_emissive for m in sd.materials) or world_lit
     assert all(m.exact for m in sd.materials) and not sd.warnings
     lo, hi = sd.world_bounds()
     assert np.all(hi > lo - 1e-6)
@@ -714,6 +715,9 @@ def test_demo_scene_builds_and_exports(scene, name):
         assert len(sd.lights) >= 24
     if name == "emissive_panel":
         assert not sd.lights and any(m.is_emissive for m in sd.materials)
+    if name == "courtyard_loft":  # lit by the HDRI alone, evaluated exactly; textured floor
+        assert world_lit and sd.world.exact and sd.world.source == "cycles"
+        assert any(m.support == "exact" and "floor" in m.name for m in sd.materials)
 
 
 def test_operator_and_menu(scene):
