@@ -111,6 +111,7 @@ class _MaterialReader:
         self.tangent_uv: str | None = None
         self.uv_names: set = set()
         self.exprs: dict = {}  # Material attribute -> the expression read for it (colour inputs)
+        self.uv_square: list[str] = []  # inputs baked from UV values: exact for UVs inside [0, 1]
 
     # ---------------------------------------------------------- expressions
     def expr(self, sock):
@@ -147,7 +148,10 @@ class _MaterialReader:
 
         tex = self.ex.baked(f"{self.mat.name}: {label}", key, make)
         ext = "REPEAT"
-        if not NE.periodic(e):
+        if NE.uv_maps_other(e):  # a function of UV: exact where the mesh's UVs stay in [0, 1]
+            ext = "EXTEND"
+            self.uv_square.append(label)
+        elif not NE.periodic(e):
             ext = "EXTEND"
             self.approx.append(f"'{label}' is baked over the UV square [0, 1] (Extend outside it)")
         ref = TexRef(texture=tex, channel=-1 if chans == 3 else 0,
@@ -231,6 +235,9 @@ class _MaterialReader:
         if found is None:
             return
         node, _ = found
+        if node.bl_idname == "ShaderNodeBump":
+            self.bump(m, node, sock)
+            return
         if node.bl_idname != "ShaderNodeNormalMap":
             self.unsupported.append(f"node '{node.name}' ({node.bl_idname}) is not supported (on '{sock.name}')")
             return
@@ -264,6 +271,41 @@ class _MaterialReader:
         self.tangent_uv = node.uv_map or ""
         if node.uv_map:
             self.uv_names.add(node.uv_map)
+
+    def bump(self, m: Material, node, sock) -> None:
+        """A Bump node: its height (any UV graph, baked when not one image channel) in
+        ``maps['bump']`` with Distance as the map's scale (negated when inverted) and Strength
+        in ``bump_strength``; a Normal Map on its Normal input is read as the normal map."""
+        nin = node.inputs.get("Normal")
+        if nin is not None and _follow(nin) is not None:
+            self.normal(m, nin)
+        if "bump" in m.maps:
+            self.unsupported.append(f"node '{node.name}' (ShaderNodeBump) after another Bump node is not "
+                                    f"supported (on '{sock.name}')")
+            return
+        vals = {}
+        for key in ("Strength", "Distance"):
+            e = self.expr(node.inputs[key])
+            if e is None:
+                return
+            if NE.is_const(e):
+                vals[key] = float(NE.evaluate(e, [[0.5, 0.5]])[0, 0])
+            else:
+                vals[key] = float(NE.bake(e, 16, 16).mean())
+                self.approx.append(f"the {key.lower()} of bump '{node.name}' is textured; its mean is used")
+        strength = min(max(vals["Strength"], 0.0), 1.0)
+        fw = node.inputs.get("Filter Width")
+        if fw is not None and fw.is_linked:
+            self.approx.append(f"the filter width of bump '{node.name}' is linked; the exact derivative is used")
+        he = self.expr(node.inputs["Height"])
+        if he is None or NE.is_const(he) or strength <= 0.0 or vals["Distance"] == 0.0:
+            return  # a constant height leaves the normal as it is
+        if NE.channels(he) != 1:
+            he = NE.Op("to_float", ("RGBA",), (he,))
+        _, ref, _ = self.resolve(he, 1, f"{node.name} Height")
+        ref.scale = vals["Distance"] * (-1.0 if node.invert else 1.0)
+        m.maps["bump"] = ref
+        m.bump_strength = strength
 
     def ignore_linked(self, names) -> None:
         for name in names:
@@ -325,6 +367,7 @@ class _MaterialReader:
         m.exact = not (self.unsupported or self.approx)
         m._tangent_uv = self.tangent_uv
         m._uv_names = set(self.uv_names)
+        m._uv_square = list(self.uv_square)
         return m
 
 
@@ -585,6 +628,7 @@ class _LobeMaterial:
         tangent = next((r.tangent_uv for _, _, r in weighted if r.tangent_uv is not None), None)
         top._tangent_uv = tangent
         top._uv_names = set().union(*[r.uv_names for r in readers]) if readers else set()
+        top._uv_square = [x for r in readers for x in r.uv_square]
         for _, m, _ in weighted:
             m.maps.pop("normal", None)  # the lobes share the material's shading normal
             m.emission_color, m.emission_strength = (0.0, 0.0, 0.0), 0.0
@@ -615,6 +659,11 @@ class _LobeMaterial:
             top.maps["normal"] = normals[0]
             if len(normals) > 1:
                 self.notes.append("the lobes share the first lobe's normal map")
+        bumps = [m for _, m, _ in weighted if "bump" in m.maps]
+        if bumps:
+            top.maps["bump"], top.bump_strength = bumps[0].maps["bump"], bumps[0].bump_strength
+            if len(bumps) > 1:
+                self.notes.append("the lobes share the first lobe's bump")
         if len(weighted) == 1 and not weighted[0][1].maps.get("weight") and self.raster_diffuse(weighted[0][1]) > 0:
             m = weighted[0][1]
             k = m.weight * self.raster_diffuse(m)
@@ -656,6 +705,7 @@ class _Exporter:
         self._bake_ids: dict[str, int] = {}
         self._tangent_maps: dict[int, str] = {}  # material index -> UV map its normal map uses
         self._uv_names: dict[int, set] = {}  # material index -> UV maps named by its nodes
+        self._uv_square: dict[int, list] = {}  # material index -> inputs baked from UV values
         self._mesh_ids: dict[tuple, int] = {}
         self._default_material: int | None = None
         self.cache = cache
@@ -683,6 +733,7 @@ class _Exporter:
         if key in self._material_ids:
             return self._material_ids[key]
         m = self._convert_material(mat)
+        m.bump_correction = bool(getattr(getattr(mat, "cycles", None), "use_bump_map_correction", True))
         for w in m.warnings:
             self.warn(w)
         idx = len(self.data.materials)
@@ -694,6 +745,8 @@ class _Exporter:
         names = getattr(m, "_uv_names", None)
         if names:
             self._uv_names[idx] = names
+        if getattr(m, "_uv_square", None):
+            self._uv_square[idx] = m._uv_square
         return idx
 
     def _fallback(self, mat, reason: str) -> Material:
@@ -825,6 +878,7 @@ class _Exporter:
         if idx is None:
             tangent_uv = next((self._tangent_maps[i] for i in lut if i in self._tangent_maps), None)
             self._check_uv_names(mesh, lut)
+            self._check_uv_square(mesh, lut)
             m = None
             ckey = None
             if self.cache is not None:
@@ -845,6 +899,32 @@ class _Exporter:
             self.data.meshes.append(m)
             self._mesh_ids[full_key] = idx
         return idx
+
+    def _check_uv_square(self, mesh, lut) -> None:
+        """A material input baked from a function of the UV values (not an image) is exact
+        where the UVs stay inside [0, 1]: say so when this mesh's go outside (Extend there)."""
+        mats = [i for i in set(lut) if i in self._uv_square]
+        if not mats:
+            return
+        layers = mesh.uv_layers
+        active = getattr(layers, "active_render", None) or layers.active
+        inside = True
+        if active is not None and len(mesh.loops):
+            uv = np.empty(2 * len(mesh.loops), np.float32)
+            active.data.foreach_get("uv", uv)
+            inside = bool(uv.min() >= -1e-4 and uv.max() <= 1.0 + 1e-4)
+        if inside:
+            return
+        for i in mats:
+            m = self.data.materials[i]
+            msg = (f"Material '{m.name}': {', '.join(repr(x) for x in self._uv_square[i])} baked over the UV "
+                   f"square [0, 1] (Extend outside it, where mesh '{mesh.name}' has UVs)")
+            if msg not in m.warnings:
+                m.warnings.append(msg)
+                m.exact = False
+                if m.support == "exact":
+                    m.support = "approximated: " + msg.split(": ", 1)[1]
+                self.warn(msg)
 
     def _check_uv_names(self, mesh, lut) -> None:
         """A material whose nodes name a UV map other than the mesh's render UV map is read

@@ -20,7 +20,7 @@ from .world_map import WorldGPU
 log = logging.getLogger(__name__)
 
 # One source of truth for the layouts (floats per record); see common.glsl.
-MATERIAL_FLOATS = 56  # 6 vec4 of values + one vec4 per texture map (MATERIAL_MAPS order)
+MATERIAL_FLOATS = 60  # 6 vec4 of values + one vec4 per texture map (MATERIAL_MAPS order)
 LIGHT_FLOATS = 28
 EMITTER_FLOATS = 16
 LIGHT_MESH = 4
@@ -94,7 +94,8 @@ def _pack_record(scene: SceneData, m, out: np.ndarray, first_lobe: int = -1) -> 
     out[12:15] = m.specular_tint
     out[15] = 1.0 if m.exact else 0.0
     out[16:20] = (BSDF_KINDS.index(m.bsdf), m.transmission, m.weight, 1.0 if m.transmits else 0.0)
-    out[20:24] = (first_lobe, len(m.lobes) if first_lobe >= 0 else 0, 0.0, 0.0)
+    out[20:24] = (first_lobe, len(m.lobes) if first_lobe >= 0 else 0, m.bump_strength if "bump" in maps else 0.0,
+                  1.0 if m.bump_correction else 0.0)
     for k, key in enumerate(MATERIAL_MAPS):
         out[24 + 4 * k:28 + 4 * k] = pack_map(scene, maps.get(key))
 

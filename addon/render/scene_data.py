@@ -91,7 +91,7 @@ class Instance:
 
 # The Principled inputs a texture can drive (Material.maps keys).
 MATERIAL_MAPS = ("base_color", "roughness", "metallic", "alpha", "emission", "normal",
-                 "specular_ior_level", "weight")
+                 "specular_ior_level", "weight", "bump")
 
 # BSDF kinds of a Material or of one of its lobes (common.glsl BSDF_* in this order).
 BSDF_KINDS = ("principled", "glossy", "glass", "refraction", "translucent")
@@ -120,7 +120,9 @@ class Material:
     Scalars hold the input's value, or its mean over the texture when ``maps`` has one for
     that input (consumers that ignore textures see the average). ``maps['emission']`` is the
     emitted radiance (Emission Color x Strength), ``maps['normal']`` a tangent-space normal
-    map (RGB in [0, 1], strength in ``scale``) over the mesh's ``tangents``.
+    map (RGB in [0, 1], strength in ``scale``) over the mesh's ``tangents``, ``maps['bump']``
+    a Bump node's height (``scale`` = Distance, negated when inverted; ``bump_strength`` its
+    Strength), applied after the normal map as Cycles' Bump node does.
     ``support`` is "exact", "approximated: <how>" or "unsupported: <node>" (what the
     exporter understood of the node tree).
 
@@ -149,6 +151,8 @@ class Material:
     bsdf: str = "principled"
     transmission: float = 0.0
     weight: float = 1.0
+    bump_strength: float = 0.0  # the Bump node's Strength (0: no bump, see maps['bump'])
+    bump_correction: bool = True  # Cycles' Bump Map Correction (material settings)
     lobes: list = field(default_factory=list)  # [Material], see above
     support: str = "exact"
     # True when the material's node tree was fully understood; False = viewport-colour fallback.

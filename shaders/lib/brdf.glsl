@@ -37,6 +37,8 @@ struct Surface {
     bool transmits;     // some lobe of the material transmits (light below the surface counts)
     int material;       // record of the material whose lobe list the path tracer evaluates, -1 none
     vec2 uv;            // where the lobes' textures are sampled
+    vec3 ns;            // the smooth normal under a normal / bump map (Cycles' sd->N); 0 = none
+    bool bump_correction; // soften diffuse light at grazing angles when N != ns (Bump Map Correction)
 };
 
 float fresnel_dielectric(float cosi, float eta) {
@@ -78,6 +80,8 @@ Surface make_surface(Material m, vec3 base_color) {
     s.transmits = false;
     s.material = -1;
     s.uv = vec2(0.0);
+    s.ns = vec3(0.0);
+    s.bump_correction = m.lobes.w > 0.5;
     return s;
 }
 

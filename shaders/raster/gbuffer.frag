@@ -40,7 +40,16 @@ void main() {
     vec3 geo = normalize(cross(dFdx(v_world), dFdy(v_world)));
     vec3 view = normalize(u_camera_pos - v_world);
     if (dot(geo, view) < 0.0) geo = -geo;
-    vec3 n = apply_normal_map(ms, normalize(v_normal), v_tangent);
+    // dP/du, dP/dv from the screen derivatives (constant over the triangle, as the ray tracer's)
+    vec3 dpdx = dFdx(v_world), dpdy = dFdy(v_world);
+    vec2 dtdx = dFdx(v_uv), dtdy = dFdy(v_uv);
+    float tdet = dtdx.x * dtdy.y - dtdx.y * dtdy.x;
+    vec3 dpdu = vec3(0.0), dpdv = vec3(0.0);
+    if (abs(tdet) > 1e-30) {
+        dpdu = (dpdx * dtdy.y - dpdy * dtdx.y) / tdet;
+        dpdv = (dpdy * dtdx.x - dpdx * dtdy.x) / tdet;
+    }
+    vec3 n = shading_normal(ms, normalize(v_normal), v_tangent, dpdu, dpdv);
     if (!gl_FrontFacing) n = -n;
     // keep the shading normal in the visible hemisphere of the geometric one
     if (dot(n, view) < 0.0) n = normalize(n - 1.01 * dot(n, view) * view);
