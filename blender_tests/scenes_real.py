@@ -410,3 +410,56 @@ def bump_floor(folder, resolution: int = 40, name: str = "bump_floor"):
     r.resolution_x = r.resolution_y = int(resolution)
     r.resolution_percentage = 100
     return sc
+
+
+def color_attribute_scene(folder=None, resolution: int = 40, name: str = "color_attr"):
+    """Vertex colours on Base Color: a 2 x 2 m floor grid (8 x 8 quads) whose point-domain float
+    colour attribute "Col" (a hue sweep over x, darker towards +y) is read by a Color
+    Attribute node naming it, and a cube whose corner-domain byte colour attribute "Paint"
+    (one colour per face) is read by an Attribute node; both Principled, roughness 0.5, under a
+    sun and a grey world."""
+    from gi_preview.blender import demo_scenes as D
+
+    sc = bpy.data.scenes.new(name)
+    b = D._Builder(sc, name)
+
+    def principled_from(node_kind, attr):
+        def build(N, L):
+            p = _bsdf(N, "ShaderNodeBsdfPrincipled", Roughness=0.5)
+            a = N.new(node_kind)
+            if node_kind == "ShaderNodeVertexColor":
+                a.layer_name = attr
+            else:
+                a.attribute_name = attr
+            L.new(a.outputs["Color"], p.inputs["Base Color"])
+            return p.outputs[0]
+        return build
+
+    n = 8
+    xs = np.linspace(-1, 1, n + 1)
+    verts = [(x, y, 0.0) for y in xs for x in xs]
+    faces = [(j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i + 1, (j + 1) * (n + 1) + i)
+             for j in range(n) for i in range(n)]
+    floor = b.mesh("floor", verts, faces, _shader_material(b.n("floor_mat"),
+                                                         principled_from("ShaderNodeVertexColor", "Col")))
+    ca = floor.data.color_attributes.new("Col", "FLOAT_COLOR", "POINT")
+    P = np.array(verts)
+    t = (P[:, 0] + 1) / 2
+    col = np.stack([0.9 * (1 - t) + 0.05, 0.8 * np.sin(np.pi * t) + 0.05, 0.9 * t + 0.05, np.ones_like(t)], 1)
+    col[:, :3] *= (1.0 - 0.6 * (P[:, 1] + 1) / 2)[:, None]
+    ca.data.foreach_set("color", col.astype(np.float32).ravel())
+    cube = b.box("cube", (0.7, 0.7, 0.7), _shader_material(b.n("cube_mat"),
+                                                          principled_from("ShaderNodeAttribute", "Paint")),
+                 location=(0.2, 0.2, 0.35), rotation=(0, 0, 0.4))
+    pa = cube.data.color_attributes.new("Paint", "BYTE_COLOR", "CORNER")
+    face_cols = [(0.9, 0.2, 0.1), (0.1, 0.7, 0.2), (0.1, 0.3, 0.9), (0.9, 0.8, 0.1), (0.8, 0.1, 0.8), (0.1, 0.8, 0.8)]
+    cc = np.array([(*face_cols[k // 4], 1.0) for k in range(24)], np.float32)
+    pa.data.foreach_set("color", cc.ravel())
+    b.light("sun", "SUN", (0, 0, 3), rotation=(math.radians(35), 0, math.radians(-30)), energy=3.0,
+            angle=math.radians(3))
+    b.camera((0.0, -2.3, 2.2), (0.0, 0.1, 0.1), lens=30)
+    sc.world = D.make_world(b.n("world"), (0.3, 0.3, 0.3), 1.0)
+    r = sc.render
+    r.resolution_x = r.resolution_y = int(resolution)
+    r.resolution_percentage = 100
+    return sc

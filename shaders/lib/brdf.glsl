@@ -39,6 +39,11 @@ struct Surface {
     vec2 uv;            // where the lobes' textures are sampled
     vec3 ns;            // the smooth normal under a normal / bump map (Cycles' sd->N); 0 = none
     bool bump_correction; // soften diffuse light at grazing angles when N != ns (Bump Map Correction)
+    float coat;         // Principled coat weight (0: none)
+    float coat_alpha;   // coat GGX alpha
+    float coat_ior;
+    vec3 coat_tint;
+    vec3 coat_n;        // the coat's normal (Cycles: the smooth normal); 0 = the shading normal
 };
 
 float fresnel_dielectric(float cosi, float eta) {
@@ -82,6 +87,11 @@ Surface make_surface(Material m, vec3 base_color) {
     s.uv = vec2(0.0);
     s.ns = vec3(0.0);
     s.bump_correction = m.lobes.w > 0.5;
+    s.coat = clamp(m.coat.x, 0.0, 1.0);
+    s.coat_alpha = max(sqr(clamp(m.coat.y, 0.0, 1.0)), 1e-4);
+    s.coat_ior = max(m.coat.z, 1.0001);
+    s.coat_tint = m.coat_tint.rgb;
+    s.coat_n = vec3(0.0);
     return s;
 }
 
@@ -234,6 +244,59 @@ vec2 lobe_weights(Surface s, float NoV) {
     return vec2(diff, spec) / tot;
 }
 
+float ggx_vndf_pdf(float NoV, float NoH, float a2);
+
+// ---- Principled coat (Cycles: a GGX dielectric reflection of weight Coat Weight on top; the
+// layers below scaled by 1 - weight * F(cos(Nc, V), coat IOR) (the coat's albedo, Fresnel of a
+// smooth interface) and by mix(1, tint^(1 / cos(refracted V)), weight), the tint's absorption
+// along the path through a coat of unit thickness). Nc: the coat normal facing V.
+vec3 coat_normal(Surface s, vec3 N) {
+    vec3 n = dot(s.coat_n, s.coat_n) > 0.0 ? s.coat_n : N;
+    return dot(n, N) < 0.0 ? -n : n;
+}
+
+vec3 coat_attenuation(Surface s, vec3 N, vec3 V) {
+    if (s.coat <= 0.0) return vec3(1.0);
+    vec3 Nc = coat_normal(s, N);
+    float cosNI = dot(V, Nc);
+    float a = 1.0 - s.coat * (cosNI > 0.0 ? fresnel_dielectric(cosNI, s.coat_ior) : 0.0);
+    vec3 t = vec3(1.0);
+    if (s.coat_tint != vec3(1.0)) {
+        float cosNT = sqrt(max(1.0 - (1.0 - cosNI * cosNI) / (s.coat_ior * s.coat_ior), 1e-8));
+        t = mix(vec3(1.0), pow(clamp(s.coat_tint, 0.0, 1.0), vec3(1.0 / cosNT)), s.coat);
+    }
+    return a * t;
+}
+
+// The coat lobe, f * cos (single-scattering GGX with exact dielectric Fresnel).
+vec3 coat_eval(Surface s, vec3 N, vec3 V, vec3 L) {
+    if (s.coat <= 0.0) return vec3(0.0);
+    vec3 Nc = coat_normal(s, N);
+    float NoL = dot(Nc, L), NoV = dot(Nc, V);
+    if (NoL <= 0.0 || NoV <= 0.0) return vec3(0.0);
+    vec3 H = normalize(V + L);
+    float a2 = s.coat_alpha * s.coat_alpha;
+    float F = fresnel_dielectric(max(dot(V, H), 0.0), s.coat_ior);
+    return vec3(s.coat * F * ggx_D(max(dot(Nc, H), 0.0), a2) * ggx_V(NoV, NoL, a2) * NoL);
+}
+
+float coat_pdf(Surface s, vec3 N, vec3 V, vec3 L) {
+    vec3 Nc = coat_normal(s, N);
+    float NoL = dot(Nc, L), NoV = dot(Nc, V);
+    if (NoL <= 0.0 || NoV <= 0.0) return 0.0;
+    return ggx_vndf_pdf(NoV, max(dot(Nc, normalize(V + L)), 0.0), s.coat_alpha * s.coat_alpha);
+}
+
+// Probability of sampling the coat lobe: its albedo against what it leaves to the layers below.
+float coat_select(Surface s, vec3 N, vec3 V) {
+    if (s.coat <= 0.0) return 0.0;
+    vec3 Nc = coat_normal(s, N);
+    float cosNI = max(dot(V, Nc), 1e-4);
+    float c = s.coat * fresnel_dielectric(cosNI, s.coat_ior);
+    float below = luminance(coat_attenuation(s, N, V)) * max(luminance(s.base_color) + s.f0 + s.metallic, 0.05);
+    return clamp(c / max(c + below, 1e-6), 0.0, 0.95);
+}
+
 struct BsdfEval {
     vec3 diffuse;   // f * cos for the diffuse lobe
     vec3 glossy;    // f * cos for the specular lobe
@@ -274,6 +337,11 @@ BsdfEval eval_principled_keep(Surface s, vec3 N, vec3 V, vec3 L, float keep) {
     }
     e.diffuse = (1.0 - s.metallic) * diff * NoL * keep;
     e.glossy = mix(spec_d * keep, spec_m, s.metallic) * NoL;
+    if (s.coat > 0.0) {
+        vec3 att = coat_attenuation(s, N, V);
+        e.diffuse *= att;
+        e.glossy = e.glossy * att + coat_eval(s, N, V, L);
+    }
     return e;
 }
 
@@ -300,8 +368,20 @@ float ggx_vndf_pdf(float NoV, float NoH, float a2) {
     return ggx_G1(NoV, a2) * ggx_D(NoH, a2) / (4.0 * max(NoV, 1e-6));
 }
 
-// Sample L from the principled BSDF (lobe chosen by lobe_weights). Returns pdf via out.
+float pdf_principled(Surface s, vec3 N, vec3 V, vec3 L);
+
+// Sample L from the principled BSDF (the coat with probability coat_select, else a lobe chosen
+// by lobe_weights). Returns pdf via out.
 vec3 sample_principled(Surface s, vec3 N, vec3 V, vec3 u, out float pdf) {
+    float pc = coat_select(s, N, V);
+    if (u.z < pc) {
+        vec3 Nc = coat_normal(s, N);
+        vec3 Vl = to_local(V, Nc);
+        vec3 L = to_world(reflect(-Vl, sample_ggx_vndf(Vl, s.coat_alpha, u.xy)), Nc);
+        pdf = pdf_principled(s, N, V, L);
+        return L;
+    }
+    u.z = pc > 0.0 ? clamp((u.z - pc) / (1.0 - pc), 0.0, 0.99999994) : u.z;
     float NoV = max(dot(N, V), 1e-4);
     vec2 w = lobe_weights(s, NoV);
     vec3 L;
@@ -313,22 +393,20 @@ vec3 sample_principled(Surface s, vec3 N, vec3 V, vec3 u, out float pdf) {
         vec3 Ll = reflect(-Vl, Hl);
         L = to_world(Ll, N);
     }
-    float NoL = dot(N, L);
-    if (NoL <= 0.0) { pdf = 0.0; return L; }
-    vec3 H = normalize(V + L);
-    float a2 = s.alpha * s.alpha;
-    pdf = w.x * NoL * INV_PI + w.y * ggx_vndf_pdf(NoV, max(dot(N, H), 0.0), a2);
+    pdf = pdf_principled(s, N, V, L);
     return L;
 }
 
 float pdf_principled(Surface s, vec3 N, vec3 V, vec3 L) {
+    float pc = coat_select(s, N, V);
+    float p = pc > 0.0 ? pc * coat_pdf(s, N, V, L) : 0.0;
     float NoL = dot(N, L);
-    if (NoL <= 0.0) return 0.0;
+    if (NoL <= 0.0) return p;
     float NoV = max(dot(N, V), 1e-4);
     vec2 w = lobe_weights(s, NoV);
     vec3 H = normalize(V + L);
     float a2 = s.alpha * s.alpha;
-    return w.x * NoL * INV_PI + w.y * ggx_vndf_pdf(NoV, max(dot(N, H), 0.0), a2);
+    return p + (1.0 - pc) * (w.x * NoL * INV_PI + w.y * ggx_vndf_pdf(NoV, max(dot(N, H), 0.0), a2));
 }
 
 // ---------------------------------------------------------------- every lobe kind
@@ -516,7 +594,9 @@ vec3 sample_surface(Surface s, vec3 N, vec3 V, vec3 u, out int lobe) {
     if (s.kind == BSDF_PRINCIPLED) {
         if (s.transmission <= 0.0) {
             float pdf;
-            lobe = u.z < lobe_weights(s, NoV).x ? LOBE_DIFFUSE : LOBE_GLOSSY;
+            float pc = coat_select(s, N, V);
+            float uz = pc > 0.0 ? (u.z - pc) / (1.0 - pc) : u.z;
+            lobe = (u.z >= pc && uz < lobe_weights(s, NoV).x) ? LOBE_DIFFUSE : LOBE_GLOSSY;
             return sample_principled(s, N, V, u, pdf);
         }
         vec3 w = principled_lobe_weights(s, NoV);

@@ -64,6 +64,11 @@ layout(std430, binding = RT_BINDING_TLAS_NODES) readonly buffer RtTlasNodes { Rt
 layout(std430, binding = RT_BINDING_VERTS) readonly buffer RtVerts { vec4 rt_verts[]; };      // xyz, w = uv.y
 // two vec4 per corner: (normal xyz, uv.x), (tangent xyz, bitangent sign; zero without one)
 layout(std430, binding = RT_BINDING_NORMALS) readonly buffer RtNormals { vec4 rt_normals[]; };
+#ifndef RT_BINDING_COLORS
+#define RT_BINDING_COLORS 16
+#endif
+// corner colour attribute, 3 per triangle in BVH order (one zero entry when no mesh has one)
+layout(std430, binding = RT_BINDING_COLORS) readonly buffer RtColors { vec4 rt_colors[]; };
 layout(std430, binding = RT_BINDING_TRI_INFO) readonly buffer RtTriInfo { ivec2 rt_tri_info[]; }; // orig tri, material
 layout(std430, binding = RT_BINDING_INSTANCES) readonly buffer RtInstances { RtInstance rt_instances[]; };
 layout(std430, binding = RT_BINDING_MATERIAL_MAP) readonly buffer RtMaterialMap { int rt_material_map[]; };
@@ -83,6 +88,7 @@ struct RtSurface {
     vec4 tangent;     // world-space interpolated tangent xyz (not normalised), w = bitangent sign
     vec3 dpdu;        // world-space dP/du, dP/dv of the triangle (zero without a UV map)
     vec3 dpdv;
+    vec4 color;       // the interpolated colour attribute (zero when the mesh has none)
     int material;     // index into SceneData.materials, -1 = default
     int triangle;     // original triangle index within its mesh
     int mesh;
@@ -321,6 +327,9 @@ RtSurface rt_surface(RtHit h) {
         s.dpdu = mat3(inst.object_to_world) * ((e1 * d2.y - e2 * d1.y) * r);
         s.dpdv = mat3(inst.object_to_world) * ((e2 * d1.x - e1 * d2.x) * r);
     }
+    s.color = vec4(0.0);
+    if (rt_colors.length() > 3 * i + 2)
+        s.color = b0 * rt_colors[3 * i] + h.bary.x * rt_colors[3 * i + 1] + h.bary.y * rt_colors[3 * i + 2];
     ivec2 info = rt_tri_info[i];
     s.triangle = info.x;
     s.mesh = inst.info.y;

@@ -74,6 +74,9 @@ struct Material {
                        // A material with lobes is, in this record, the blended approximation the
                        // G-buffer family renders; the path tracer evaluates its lobe records.
     vec4 maps[MATERIAL_MAP_COUNT];  // textures feeding the values above (lib/textures.glsl)
+    vec4 coat;         // Principled coat: weight, roughness, IOR, -
+    vec4 coat_tint;    // rgb coat tint, w = sheen weight
+    vec4 sheen;        // rgb sheen tint, w = sheen roughness
 };
 
 struct Light {

@@ -35,8 +35,15 @@ vec4 tex_fetch(sampler2DArray tex, int layer, ivec2 size, int ext, int x, int y)
     return valid ? texelFetch(tex, ivec3(xi, yi, layer), 0) : vec4(0.0);
 }
 
+// The colour attribute at the point being shaded (Color Attribute node): set by the caller
+// before sample_material (gbuffer.frag from the vertex attribute, scene_trace from the hit's
+// corners); a map whose layer is MAP_LAYER_VERTEX_COLOR reads it.
+#define MAP_LAYER_VERTEX_COLOR -2.0
+vec4 g_vertex_color = vec4(0.0);
+
 // RGBA of one map at uv (no channel selection, no scale).
 vec4 sample_map_rgba(sampler2DArray tex, vec4 map, vec2 uv) {
+    if (map.x < -1.5) return g_vertex_color;
     int layer = int(map.x + 0.5);
     int wh = int(map.y + 0.5);
     ivec2 size = max(ivec2(wh / 4096, wh % 4096), ivec2(1));
@@ -79,7 +86,7 @@ vec2 sample_map_float_grad(sampler2DArray tex, vec4 map, vec2 uv) {
     ivec2 size = max(ivec2(wh / 4096, wh % 4096), ivec2(1));
     int flags = int(map.z + 0.5);
     int ext = (flags >> 4) & 3;
-    if ((flags & 8) != 0) return vec2(0.0);
+    if ((flags & 8) != 0 || map.x < -1.5) return vec2(0.0);
     if (ext == 2 && (uv.x < 0.0 || uv.x > 1.0 || uv.y < 0.0 || uv.y > 1.0)) return vec2(0.0);
     vec2 x = uv * vec2(size) - 0.5;
     vec2 f = floor(x);
@@ -96,7 +103,7 @@ vec2 sample_map_float_grad(sampler2DArray tex, vec4 map, vec2 uv) {
     return g * map.w;
 }
 
-bool has_map(Material m, int k) { return m.maps[k].x >= 0.0; }
+bool has_map(Material m, int k) { return m.maps[k].x >= 0.0 || m.maps[k].x < -1.5; }
 
 // Base colour of material m at uv.
 vec3 material_base_color(sampler2DArray tex, Material m, vec2 uv) {

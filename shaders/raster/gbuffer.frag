@@ -12,6 +12,7 @@
 in vec3 v_world;
 in vec3 v_normal;
 in vec4 v_tangent;
+in vec4 v_color;
 in vec2 v_uv;
 flat in int v_material;
 in vec4 v_clip;
@@ -34,6 +35,7 @@ layout(location = 5) out vec4 o_emission;
 void main() {
     int mid = (v_material >= 0 && v_material < u_material_count) ? v_material : u_material_count;
     Material m = materials[mid];
+    g_vertex_color = v_color;
     MaterialSample ms = sample_material(u_textures, m, v_uv);  // as the ray tracer samples it
     if (u_alpha_test == 1 && ms.alpha < 1.0 &&
         alpha_hash_u01(uvec3(uvec2(gl_FragCoord.xy), uint(u_alpha_seed))) >= ms.alpha) discard;
