@@ -463,3 +463,45 @@ def color_attribute_scene(folder=None, resolution: int = 40, name: str = "color_
     r.resolution_x = r.resolution_y = int(resolution)
     r.resolution_percentage = 100
     return sc
+
+
+def principled_layers_scene(folder=None, resolution: int = 40, name: str = "principled_layers",
+                            layer: str = "coat"):
+    """Three spheres on a grey floor under a sun, a small area light and a grey world, each a
+    Principled BSDF with a layer on top as artists set it: ``layer="coat"``: a red plastic
+    with a clear coat (Weight 1, Roughness 0.05, IOR 1.5), a gold metal with a rough blue-tinted
+    coat (Weight 0.8, Roughness 0.3, IOR 1.6, Tint (0.5, 0.7, 1)) and a white diffuse with a
+    half coat (Weight 0.5, Roughness 0.1); ``layer="sheen"``: a dark blue cloth (Sheen Weight
+    1, Roughness 0.5, white tint), a red cloth (Sheen 1, Roughness 0.2, pink tint) and a
+    grey one (Sheen 0.6, Roughness 0.9)."""
+    from gi_preview.blender import demo_scenes as D
+
+    sc = bpy.data.scenes.new(name)
+    b = D._Builder(sc, name)
+    if layer == "coat":
+        specs = [({"Base Color": (0.6, 0.05, 0.03), "Roughness": 0.5, "Coat Weight": 1.0, "Coat Roughness": 0.05,
+                   "Coat IOR": 1.5}),
+                 ({"Base Color": (0.9, 0.7, 0.3), "Metallic": 1.0, "Roughness": 0.25, "Coat Weight": 0.8,
+                   "Coat Roughness": 0.3, "Coat IOR": 1.6, "Coat Tint": (0.5, 0.7, 1.0)}),
+                 ({"Base Color": (0.8, 0.8, 0.8), "Roughness": 0.9, "Coat Weight": 0.5, "Coat Roughness": 0.1})]
+    else:
+        specs = [({"Base Color": (0.03, 0.05, 0.2), "Roughness": 0.8, "Sheen Weight": 1.0, "Sheen Roughness": 0.5}),
+                 ({"Base Color": (0.4, 0.02, 0.03), "Roughness": 0.7, "Sheen Weight": 1.0, "Sheen Roughness": 0.2,
+                   "Sheen Tint": (1.0, 0.6, 0.7)}),
+                 ({"Base Color": (0.3, 0.3, 0.3), "Roughness": 0.9, "Sheen Weight": 0.6, "Sheen Roughness": 0.9})]
+    for k, spec in enumerate(specs):
+        mat = _shader_material(b.n(f"{layer}{k}"), lambda N, L, spec=spec: _bsdf(
+            N, "ShaderNodeBsdfPrincipled", **spec).outputs[0])
+        b.sphere(f"ball{k}", 0.42, mat, location=(-1.0 + 1.0 * k, 0.0, 0.42), segments=48, rings=24)
+    floor = D.make_principled(b.n("floor"), (0.5, 0.5, 0.5), 0.6)
+    b.quad("floor", [(-3, -2, 0), (3, -2, 0), (3, 3, 0), (-3, 3, 0)], floor)
+    b.light("sun", "SUN", (0, 0, 3), rotation=(math.radians(50), 0, math.radians(-35)), energy=2.5,
+            angle=math.radians(4))
+    b.light("key", "AREA", (1.2, -1.5, 2.0), rotation=(math.radians(40), 0, math.radians(35)), energy=60.0,
+            size=0.6)
+    b.camera((0.0, -2.6, 0.9), (0.0, 0.0, 0.42), lens=38)
+    sc.world = D.make_world(b.n("world"), (0.35, 0.35, 0.35), 1.0)
+    r = sc.render
+    r.resolution_x = r.resolution_y = int(resolution)
+    r.resolution_percentage = 100
+    return sc
