@@ -368,6 +368,23 @@ class _MaterialReader:
                 self.approx.append("the coat does not cover the transmission part (light sampling alone finds "
                                    "its reflection there)")
 
+    def sheen(self, m: Material, inp) -> None:
+        """Principled sheen: Weight, Roughness, Tint (constants; a textured one by its mean)."""
+        ws = inp.get("Sheen Weight")
+        if ws is None or (not ws.is_linked and float(ws.default_value) <= 0.0):
+            return
+        for attr, name, chans in (("sheen_weight", "Sheen Weight", 1), ("sheen_roughness", "Sheen Roughness", 1),
+                                  ("sheen_tint", "Sheen Tint", 3)):
+            v, textured = self.const_or_mean(inp[name], chans)
+            setattr(m, attr, v)
+            if textured:
+                self.approx.append(f"'{name}' is textured; its mean is used")
+        m.sheen_weight = max(m.sheen_weight, 0.0)
+        if m.sheen_weight > 0.0:
+            self.approx.append("the sheen's lobe shape is approximated (a Charlie distribution scaled to the "
+                               "albedo of Cycles' microfiber sheen, which it takes off the layers below as Cycles "
+                               "does); the raster passes shade it lit by lights only")
+
     def ignore_linked(self, names) -> None:
         for name in names:
             sock = self.bsdf.inputs.get(name)
@@ -404,9 +421,10 @@ class _MaterialReader:
             self.scalar(m, "transmission", tw)
             m.transmission = min(max(m.transmission, 0.0), 1.0)
         self.coat(m, inp)
+        self.sheen(m, inp)
         # Lobes GI Preview does not model: keep the Principled values, flag them.
         ignored = []
-        for name in ("Sheen Weight", "Subsurface Weight"):
+        for name in ("Subsurface Weight",):
             s = inp.get(name)
             if s is not None and (s.is_linked or float(s.default_value) > 0.0):
                 ignored.append(name)

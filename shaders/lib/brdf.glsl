@@ -44,6 +44,9 @@ struct Surface {
     float coat_ior;
     vec3 coat_tint;
     vec3 coat_n;        // the coat's normal (Cycles: the smooth normal); 0 = the shading normal
+    float sheen;        // Principled sheen weight (0: none)
+    float sheen_rough;
+    vec3 sheen_tint;
 };
 
 float fresnel_dielectric(float cosi, float eta) {
@@ -92,6 +95,9 @@ Surface make_surface(Material m, vec3 base_color) {
     s.coat_ior = max(m.coat.z, 1.0001);
     s.coat_tint = m.coat_tint.rgb;
     s.coat_n = vec3(0.0);
+    s.sheen = max(m.coat_tint.w, 0.0);
+    s.sheen_rough = clamp(m.sheen.w, 0.0, 1.0);
+    s.sheen_tint = max(m.sheen.rgb, vec3(0.0));
     return s;
 }
 
@@ -246,6 +252,52 @@ vec2 lobe_weights(Surface s, float NoV) {
 
 float ggx_vndf_pdf(float NoV, float NoH, float a2);
 
+// ---- Principled sheen: Cycles' microfiber sheen (Zeltner et al. 2022, an LTC fit) with its
+// directional albedo A(roughness, cos) measured from Cycles (render/sheen_table.py) and the lobe's
+// shape approximated by the Charlie distribution (Estevez & Kulla 2017) of alpha = roughness^2
+// with Neubelt & Pettineo's visibility, scaled to albedo A (its own albedo E: SHEEN_E,
+// gen_brdf_tables.py). As in Cycles it is the top layer, scaling everything below by
+// 1 - weight * max(tint) * A.
+float sheen_table(bool cycles, float rough, float mu) {
+    float x = clamp(rough, 0.0, 1.0) * 31.0, y = clamp(mu, 0.0, 1.0) * 31.0;
+    int i0 = min(int(x), 31), j0 = min(int(y), 31);
+    int i1 = min(i0 + 1, 31), j1 = min(j0 + 1, 31);
+    float tx = x - float(i0), ty = y - float(j0);
+    float v00 = cycles ? SHEEN_ALBEDO_at(i0 * 32 + j0) : SHEEN_E_at(i0 * 32 + j0);
+    float v10 = cycles ? SHEEN_ALBEDO_at(i1 * 32 + j0) : SHEEN_E_at(i1 * 32 + j0);
+    float v01 = cycles ? SHEEN_ALBEDO_at(i0 * 32 + j1) : SHEEN_E_at(i0 * 32 + j1);
+    float v11 = cycles ? SHEEN_ALBEDO_at(i1 * 32 + j1) : SHEEN_E_at(i1 * 32 + j1);
+    return mix(mix(v00, v10, tx), mix(v01, v11, tx), ty);
+}
+float sheen_E(float rough, float mu) { return sheen_table(false, rough, mu); }
+float sheen_A(float rough, float mu) { return max(sheen_table(true, rough, mu), 0.0); }
+
+float sheen_attenuation(Surface s, float NoV) {
+    if (s.sheen <= 0.0) return 1.0;
+    return clamp(1.0 - s.sheen * max3(s.sheen_tint) * sheen_A(s.sheen_rough, NoV), 0.0, 1.0);
+}
+
+vec3 sheen_eval(Surface s, vec3 N, vec3 V, vec3 L) {
+    if (s.sheen <= 0.0) return vec3(0.0);
+    float NoL = dot(N, L), NoV = max(dot(N, V), 1e-4);
+    if (NoL <= 0.0) return vec3(0.0);
+    float a = clamp(s.sheen_rough * s.sheen_rough, 0.01, 1.0);
+    vec3 H = normalize(V + L);
+    float sin2 = max(1.0 - sqr(dot(N, H)), 0.0);
+    float D = (2.0 + 1.0 / a) * pow(sin2, 0.5 / a) * (0.5 * INV_PI);
+    float vis = 1.0 / (4.0 * (NoL + NoV - NoL * NoV));
+    float k = sheen_A(s.sheen_rough, NoV) / max(sheen_E(s.sheen_rough, NoV), 1e-4);
+    return s.sheen * s.sheen_tint * (D * vis * NoL * k);
+}
+
+// Probability of sampling the sheen (cosine-weighted) rather than the layers below.
+float sheen_select(Surface s, float NoV) {
+    if (s.sheen <= 0.0) return 0.0;
+    float e = s.sheen * luminance(s.sheen_tint) * sheen_A(s.sheen_rough, NoV);
+    return clamp(e / max(e + sheen_attenuation(s, NoV) * max(luminance(s.base_color) + s.f0 + s.metallic, 0.05), 1e-6),
+                 0.0, 0.9);
+}
+
 // ---- Principled coat (Cycles: a GGX dielectric reflection of weight Coat Weight on top; the
 // layers below scaled by 1 - weight * F(cos(Nc, V), coat IOR) (the coat's albedo, Fresnel of a
 // smooth interface) and by mix(1, tint^(1 / cos(refracted V)), weight), the tint's absorption
@@ -342,6 +394,11 @@ BsdfEval eval_principled_keep(Surface s, vec3 N, vec3 V, vec3 L, float keep) {
         e.diffuse *= att;
         e.glossy = e.glossy * att + coat_eval(s, N, V, L);
     }
+    if (s.sheen > 0.0) {
+        float att = sheen_attenuation(s, NoV);
+        e.diffuse = e.diffuse * att + sheen_eval(s, N, V, L);
+        e.glossy *= att;
+    }
     return e;
 }
 
@@ -373,6 +430,13 @@ float pdf_principled(Surface s, vec3 N, vec3 V, vec3 L);
 // Sample L from the principled BSDF (the coat with probability coat_select, else a lobe chosen
 // by lobe_weights). Returns pdf via out.
 vec3 sample_principled(Surface s, vec3 N, vec3 V, vec3 u, out float pdf) {
+    float psh = sheen_select(s, max(dot(N, V), 1e-4));
+    if (u.z < psh) {
+        vec3 L = to_world(sample_cosine_hemisphere(u.xy), N);
+        pdf = pdf_principled(s, N, V, L);
+        return L;
+    }
+    u.z = psh > 0.0 ? clamp((u.z - psh) / (1.0 - psh), 0.0, 0.99999994) : u.z;
     float pc = coat_select(s, N, V);
     if (u.z < pc) {
         vec3 Nc = coat_normal(s, N);
@@ -398,10 +462,13 @@ vec3 sample_principled(Surface s, vec3 N, vec3 V, vec3 u, out float pdf) {
 }
 
 float pdf_principled(Surface s, vec3 N, vec3 V, vec3 L) {
-    float pc = coat_select(s, N, V);
+    float psh = sheen_select(s, max(dot(N, V), 1e-4));
+    float pc = coat_select(s, N, V) * (1.0 - psh);
     float p = pc > 0.0 ? pc * coat_pdf(s, N, V, L) : 0.0;
     float NoL = dot(N, L);
     if (NoL <= 0.0) return p;
+    p += psh * NoL * INV_PI;
+    pc += psh;
     float NoV = max(dot(N, V), 1e-4);
     vec2 w = lobe_weights(s, NoV);
     vec3 H = normalize(V + L);
@@ -594,9 +661,11 @@ vec3 sample_surface(Surface s, vec3 N, vec3 V, vec3 u, out int lobe) {
     if (s.kind == BSDF_PRINCIPLED) {
         if (s.transmission <= 0.0) {
             float pdf;
+            float psh = sheen_select(s, NoV);
+            float u1 = psh > 0.0 ? clamp((u.z - psh) / (1.0 - psh), 0.0, 0.99999994) : u.z;
             float pc = coat_select(s, N, V);
-            float uz = pc > 0.0 ? (u.z - pc) / (1.0 - pc) : u.z;
-            lobe = (u.z >= pc && uz < lobe_weights(s, NoV).x) ? LOBE_DIFFUSE : LOBE_GLOSSY;
+            float uz = pc > 0.0 ? (u1 - pc) / (1.0 - pc) : u1;
+            lobe = u.z < psh ? LOBE_DIFFUSE : ((u1 >= pc && uz < lobe_weights(s, NoV).x) ? LOBE_DIFFUSE : LOBE_GLOSSY);
             return sample_principled(s, N, V, u, pdf);
         }
         vec3 w = principled_lobe_weights(s, NoV);
