@@ -512,3 +512,43 @@ def test_sheen_against_cycles():
         assert nosheen > 5 * e
     finally:
         bpy.data.scenes.remove(sc)
+
+
+def test_setup_support_classification(scene):
+    """The support report names what it cannot render exactly: a Bump node on a procedural
+    texture (unsupported, the texture named), a linked Coat Normal (approximated), a Color
+    Attribute behind a Mix node (unsupported, the node named)."""
+    from gi_preview.blender.export import export_scene
+    from gi_preview.blender.reference import evaluated_depsgraph
+
+    def mat(name, build):
+        m = bpy.data.materials.new(name)
+        nt = m.node_tree
+        p = nt.nodes["Principled BSDF"]
+        build(nt.nodes, nt.links, p)
+        return m
+
+    def noise_bump(N, L, p):
+        b = N.new("ShaderNodeBump")
+        L.new(N.new("ShaderNodeTexNoise").outputs["Fac"], b.inputs["Height"])
+        L.new(b.outputs["Normal"], p.inputs["Normal"])
+
+    def coat_normal(N, L, p):
+        p.inputs["Coat Weight"].default_value = 1.0
+        L.new(N.new("ShaderNodeNormalMap").outputs["Normal"], p.inputs["Coat Normal"])
+
+    def attr_mix(N, L, p):
+        a = N.new("ShaderNodeVertexColor")
+        m = N.new("ShaderNodeMixRGB")
+        L.new(a.outputs["Color"], m.inputs["Color1"])
+        L.new(m.outputs["Color"], p.inputs["Base Color"])
+
+    for i, (name, build) in enumerate((("noise_bump", noise_bump), ("coat_normal", coat_normal),
+                                       ("attr_mix", attr_mix))):
+        ob = _quad_with(scene, name, mat(name, build))
+        ob.location.x = 2 * i
+    sd = export_scene(evaluated_depsgraph(scene))
+    sup = _support(sd)
+    assert sup["noise_bump"]["status"] == "unsupported" and "ShaderNodeTexNoise" in sup["noise_bump"]["detail"]
+    assert sup["coat_normal"]["status"] == "approximated" and "Coat Normal" in sup["coat_normal"]["detail"]
+    assert sup["attr_mix"]["status"] == "unsupported" and "ShaderNodeVertexColor" in sup["attr_mix"]["detail"]
