@@ -335,3 +335,173 @@ def _floor(nodes, links, image):
     t.image = image
     links.new(t.outputs["Color"], p.inputs["Base Color"])
     return p.outputs[0]
+
+
+# ------------------------------------------------------------------ everyday Principled setups
+def _uv_quad(b, name, corners, mat):
+    ob = b.quad(name, corners, mat)
+    ob.data.uv_layers[0].data.foreach_set("uv", np.array([(0, 0), (1, 0), (1, 1), (0, 1)], np.float32).ravel())
+    return ob
+
+
+def bump_floor(folder, resolution: int = 40, name: str = "bump_floor"):
+    """Two 2 x 2 m floor tiles under a grazing sun (15 degrees above the horizon) and a dim
+    grey world, seen from above at 45 degrees (the tiles fill the frame). Left ("bump_image"): a Bump node on a
+    Non-Color egg-crate height image (6 x 6 bumps over the tile), Distance 0.05. Right
+    ("bump_graph"): a Bump node (Strength 0.8, Distance 0.02, Invert) on a value graph over
+    UV (sin(40 * (u + 0.5 v)) through Vector Math Dot and Math), its Normal fed by a
+    tangent-space Normal Map of a constant tilt. Both Principled, grey, roughness 0.4."""
+    from gi_preview.blender import demo_scenes as D
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    sc = bpy.data.scenes.new(name)
+    b = D._Builder(sc, name)
+    n = 64
+    u, v = _grid(n)
+    h = np.ones((n, n, 4))
+    h[..., :3] = (0.5 + 0.5 * np.sin(2 * np.pi * 6 * u) * np.sin(2 * np.pi * 6 * v))[..., None]
+    im = _save(f"{name}_height", h, True, folder)
+
+    def image_bump(N, L):
+        p = _bsdf(N, "ShaderNodeBsdfPrincipled", **{"Base Color": (0.7, 0.7, 0.7), "Roughness": 0.4})
+        t = N.new("ShaderNodeTexImage")
+        t.image = im
+        bump = N.new("ShaderNodeBump")
+        bump.inputs["Distance"].default_value = 0.05
+        L.new(t.outputs["Color"], bump.inputs["Height"])
+        L.new(bump.outputs["Normal"], p.inputs["Normal"])
+        return p.outputs[0]
+
+    def graph_bump(N, L):
+        p = _bsdf(N, "ShaderNodeBsdfPrincipled", **{"Base Color": (0.6, 0.65, 0.7), "Roughness": 0.4})
+        tc = N.new("ShaderNodeTexCoord")
+        dot = N.new("ShaderNodeVectorMath")
+        dot.operation = "DOT_PRODUCT"
+        dot.inputs[1].default_value = (1.0, 0.5, 0.0)
+        L.new(tc.outputs["UV"], dot.inputs[0])
+        mul = N.new("ShaderNodeMath")
+        mul.operation = "MULTIPLY"
+        mul.inputs[1].default_value = 40.0
+        L.new(dot.outputs["Value"], mul.inputs[0])
+        sin = N.new("ShaderNodeMath")
+        sin.operation = "SINE"
+        L.new(mul.outputs[0], sin.inputs[0])
+        nm = N.new("ShaderNodeNormalMap")
+        nm.inputs["Color"].default_value = (0.62, 0.5, 0.92, 1.0)
+        bump = N.new("ShaderNodeBump")
+        bump.invert = True
+        bump.inputs["Strength"].default_value = 0.8
+        bump.inputs["Distance"].default_value = 0.02
+        L.new(sin.outputs[0], bump.inputs["Height"])
+        L.new(nm.outputs["Normal"], bump.inputs["Normal"])
+        L.new(bump.outputs["Normal"], p.inputs["Normal"])
+        return p.outputs[0]
+
+    _uv_quad(b, "tile_image", [(-2, -1, 0), (0, -1, 0), (0, 1, 0), (-2, 1, 0)],
+             _shader_material(b.n("bump_image"), image_bump))
+    _uv_quad(b, "tile_graph", [(0, -1, 0), (2, -1, 0), (2, 1, 0), (0, 1, 0)],
+             _shader_material(b.n("bump_graph"), graph_bump))
+    b.light("sun", "SUN", (0, 0, 3), rotation=(math.radians(75), 0, math.radians(30)), energy=4.0,
+            angle=math.radians(2))
+    b.camera((0.0, -2.1, 2.1), (0.0, 0.05, 0.0), lens=24)
+    sc.world = D.make_world(b.n("world"), (0.05, 0.05, 0.05), 1.0)
+    r = sc.render
+    r.resolution_x = r.resolution_y = int(resolution)
+    r.resolution_percentage = 100
+    return sc
+
+
+def color_attribute_scene(folder=None, resolution: int = 40, name: str = "color_attr"):
+    """Vertex colours on Base Color: a 2 x 2 m floor grid (8 x 8 quads) whose point-domain float
+    colour attribute "Col" (a hue sweep over x, darker towards +y) is read by a Color
+    Attribute node naming it, and a cube whose corner-domain byte colour attribute "Paint"
+    (one colour per face) is read by an Attribute node; both Principled, roughness 0.5, under a
+    sun and a grey world."""
+    from gi_preview.blender import demo_scenes as D
+
+    sc = bpy.data.scenes.new(name)
+    b = D._Builder(sc, name)
+
+    def principled_from(node_kind, attr):
+        def build(N, L):
+            p = _bsdf(N, "ShaderNodeBsdfPrincipled", Roughness=0.5)
+            a = N.new(node_kind)
+            if node_kind == "ShaderNodeVertexColor":
+                a.layer_name = attr
+            else:
+                a.attribute_name = attr
+            L.new(a.outputs["Color"], p.inputs["Base Color"])
+            return p.outputs[0]
+        return build
+
+    n = 8
+    xs = np.linspace(-1, 1, n + 1)
+    verts = [(x, y, 0.0) for y in xs for x in xs]
+    faces = [(j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i + 1, (j + 1) * (n + 1) + i)
+             for j in range(n) for i in range(n)]
+    floor = b.mesh("floor", verts, faces, _shader_material(b.n("floor_mat"),
+                                                         principled_from("ShaderNodeVertexColor", "Col")))
+    ca = floor.data.color_attributes.new("Col", "FLOAT_COLOR", "POINT")
+    P = np.array(verts)
+    t = (P[:, 0] + 1) / 2
+    col = np.stack([0.9 * (1 - t) + 0.05, 0.8 * np.sin(np.pi * t) + 0.05, 0.9 * t + 0.05, np.ones_like(t)], 1)
+    col[:, :3] *= (1.0 - 0.6 * (P[:, 1] + 1) / 2)[:, None]
+    ca.data.foreach_set("color", col.astype(np.float32).ravel())
+    cube = b.box("cube", (0.7, 0.7, 0.7), _shader_material(b.n("cube_mat"),
+                                                          principled_from("ShaderNodeAttribute", "Paint")),
+                 location=(0.2, 0.2, 0.35), rotation=(0, 0, 0.4))
+    pa = cube.data.color_attributes.new("Paint", "BYTE_COLOR", "CORNER")
+    face_cols = [(0.9, 0.2, 0.1), (0.1, 0.7, 0.2), (0.1, 0.3, 0.9), (0.9, 0.8, 0.1), (0.8, 0.1, 0.8), (0.1, 0.8, 0.8)]
+    cc = np.array([(*face_cols[k // 4], 1.0) for k in range(24)], np.float32)
+    pa.data.foreach_set("color", cc.ravel())
+    b.light("sun", "SUN", (0, 0, 3), rotation=(math.radians(35), 0, math.radians(-30)), energy=3.0,
+            angle=math.radians(3))
+    b.camera((0.0, -2.3, 2.2), (0.0, 0.1, 0.1), lens=30)
+    sc.world = D.make_world(b.n("world"), (0.3, 0.3, 0.3), 1.0)
+    r = sc.render
+    r.resolution_x = r.resolution_y = int(resolution)
+    r.resolution_percentage = 100
+    return sc
+
+
+def principled_layers_scene(folder=None, resolution: int = 40, name: str = "principled_layers",
+                            layer: str = "coat"):
+    """Three spheres on a grey floor under a sun, a small area light and a grey world, each a
+    Principled BSDF with a layer on top as artists set it: ``layer="coat"``: a red plastic
+    with a clear coat (Weight 1, Roughness 0.05, IOR 1.5), a gold metal with a rough blue-tinted
+    coat (Weight 0.8, Roughness 0.3, IOR 1.6, Tint (0.5, 0.7, 1)) and a white diffuse with a
+    half coat (Weight 0.5, Roughness 0.1); ``layer="sheen"``: a dark blue cloth (Sheen Weight
+    1, Roughness 0.5, white tint), a red cloth (Sheen 1, Roughness 0.2, pink tint) and a
+    grey one (Sheen 0.6, Roughness 0.9)."""
+    from gi_preview.blender import demo_scenes as D
+
+    sc = bpy.data.scenes.new(name)
+    b = D._Builder(sc, name)
+    if layer == "coat":
+        specs = [({"Base Color": (0.6, 0.05, 0.03), "Roughness": 0.5, "Coat Weight": 1.0, "Coat Roughness": 0.05,
+                   "Coat IOR": 1.5}),
+                 ({"Base Color": (0.9, 0.7, 0.3), "Metallic": 1.0, "Roughness": 0.25, "Coat Weight": 0.8,
+                   "Coat Roughness": 0.3, "Coat IOR": 1.6, "Coat Tint": (0.5, 0.7, 1.0)}),
+                 ({"Base Color": (0.8, 0.8, 0.8), "Roughness": 0.9, "Coat Weight": 0.5, "Coat Roughness": 0.1})]
+    else:
+        specs = [({"Base Color": (0.03, 0.05, 0.2), "Roughness": 0.8, "Sheen Weight": 1.0, "Sheen Roughness": 0.5}),
+                 ({"Base Color": (0.4, 0.02, 0.03), "Roughness": 0.7, "Sheen Weight": 1.0, "Sheen Roughness": 0.2,
+                   "Sheen Tint": (1.0, 0.6, 0.7)}),
+                 ({"Base Color": (0.3, 0.3, 0.3), "Roughness": 0.9, "Sheen Weight": 0.6, "Sheen Roughness": 0.9})]
+    for k, spec in enumerate(specs):
+        mat = _shader_material(b.n(f"{layer}{k}"), lambda N, L, spec=spec: _bsdf(
+            N, "ShaderNodeBsdfPrincipled", **spec).outputs[0])
+        b.sphere(f"ball{k}", 0.42, mat, location=(-1.0 + 1.0 * k, 0.0, 0.42), segments=48, rings=24)
+    floor = D.make_principled(b.n("floor"), (0.5, 0.5, 0.5), 0.6)
+    b.quad("floor", [(-3, -2, 0), (3, -2, 0), (3, 3, 0), (-3, 3, 0)], floor)
+    b.light("sun", "SUN", (0, 0, 3), rotation=(math.radians(50), 0, math.radians(-35)), energy=2.5,
+            angle=math.radians(4))
+    b.light("key", "AREA", (1.2, -1.5, 2.0), rotation=(math.radians(40), 0, math.radians(35)), energy=60.0,
+            size=0.6)
+    b.camera((0.0, -2.6, 0.9), (0.0, 0.0, 0.42), lens=38)
+    sc.world = D.make_world(b.n("world"), (0.35, 0.35, 0.35), 1.0)
+    r = sc.render
+    r.resolution_x = r.resolution_y = int(resolution)
+    r.resolution_percentage = 100
+    return sc

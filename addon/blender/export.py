@@ -41,7 +41,7 @@ import numpy as np
 
 from ..render import node_eval as NE
 from ..render.node_eval import Unsupported
-from ..render.scene_data import (AreaShape, Camera, Instance, Light, LightType, Material,
+from ..render.scene_data import (VERTEX_COLOR, AreaShape, Camera, Instance, Light, LightType, Material,
                                  Mesh, SceneData, SceneError, TexRef, Texture, World)
 from ..render.world_map import extract_sun, world_map_of
 from .material_nodes import Capture, follow_link
@@ -109,8 +109,10 @@ class _MaterialReader:
         self.unsupported: list[str] = []
         self.approx: list[str] = []
         self.tangent_uv: str | None = None
+        self.color_attr: str | None = None  # the colour attribute a Color Attribute node reads ("" = default)
         self.uv_names: set = set()
         self.exprs: dict = {}  # Material attribute -> the expression read for it (colour inputs)
+        self.uv_square: list[str] = []  # inputs baked from UV values: exact for UVs inside [0, 1]
 
     # ---------------------------------------------------------- expressions
     def expr(self, sock):
@@ -147,7 +149,10 @@ class _MaterialReader:
 
         tex = self.ex.baked(f"{self.mat.name}: {label}", key, make)
         ext = "REPEAT"
-        if not NE.periodic(e):
+        if NE.uv_maps_other(e):  # a function of UV: exact where the mesh's UVs stay in [0, 1]
+            ext = "EXTEND"
+            self.uv_square.append(label)
+        elif not NE.periodic(e):
             ext = "EXTEND"
             self.approx.append(f"'{label}' is baked over the UV square [0, 1] (Extend outside it)")
         ref = TexRef(texture=tex, channel=-1 if chans == 3 else 0,
@@ -172,7 +177,28 @@ class _MaterialReader:
         return TexRef(texture=img.texture, channel=ch, interpolation=img.interpolation, extension=img.extension)
 
     # ---------------------------------------------------------- inputs
+    def vertex_color(self, sock):
+        """The colour attribute name when ``sock`` is fed straight by a Color Attribute node
+        (or an Attribute node's Color output, Geometry type); None otherwise."""
+        found = _follow(sock)
+        if found is None:
+            return None
+        node, out = found
+        if getattr(node, "mute", False):
+            return None
+        if node.bl_idname == "ShaderNodeVertexColor" and out.identifier == "Color":
+            return node.layer_name or ""
+        if node.bl_idname == "ShaderNodeAttribute" and node.attribute_type == "GEOMETRY" and \
+                out.identifier == "Color":
+            return node.attribute_name or ""
+        return None
+
     def color(self, m: Material, key: str, sock) -> None:
+        name = self.vertex_color(sock)
+        if name is not None:
+            m.maps[key] = TexRef(texture=VERTEX_COLOR, channel=-1)
+            self.color_attr = name
+            return
         e = self.expr(sock)
         if e is None:
             e = NE.Const(tuple(float(x) for x in sock.default_value[:3]))
@@ -231,6 +257,9 @@ class _MaterialReader:
         if found is None:
             return
         node, _ = found
+        if node.bl_idname == "ShaderNodeBump":
+            self.bump(m, node, sock)
+            return
         if node.bl_idname != "ShaderNodeNormalMap":
             self.unsupported.append(f"node '{node.name}' ({node.bl_idname}) is not supported (on '{sock.name}')")
             return
@@ -264,6 +293,97 @@ class _MaterialReader:
         self.tangent_uv = node.uv_map or ""
         if node.uv_map:
             self.uv_names.add(node.uv_map)
+
+    def bump(self, m: Material, node, sock) -> None:
+        """A Bump node: its height (any UV graph, baked when not one image channel) in
+        ``maps['bump']`` with Distance as the map's scale (negated when inverted) and Strength
+        in ``bump_strength``; a Normal Map on its Normal input is read as the normal map."""
+        nin = node.inputs.get("Normal")
+        if nin is not None and _follow(nin) is not None:
+            self.normal(m, nin)
+        if "bump" in m.maps:
+            self.unsupported.append(f"node '{node.name}' (ShaderNodeBump) after another Bump node is not "
+                                    f"supported (on '{sock.name}')")
+            return
+        vals = {}
+        for key in ("Strength", "Distance"):
+            e = self.expr(node.inputs[key])
+            if e is None:
+                return
+            if NE.is_const(e):
+                vals[key] = float(NE.evaluate(e, [[0.5, 0.5]])[0, 0])
+            else:
+                vals[key] = float(NE.bake(e, 16, 16).mean())
+                self.approx.append(f"the {key.lower()} of bump '{node.name}' is textured; its mean is used")
+        strength = min(max(vals["Strength"], 0.0), 1.0)
+        fw = node.inputs.get("Filter Width")
+        if fw is not None and fw.is_linked:
+            self.approx.append(f"the filter width of bump '{node.name}' is linked; the exact derivative is used")
+        he = self.expr(node.inputs["Height"])
+        if he is None or NE.is_const(he) or strength <= 0.0 or vals["Distance"] == 0.0:
+            return  # a constant height leaves the normal as it is
+        if NE.channels(he) != 1:
+            he = NE.Op("to_float", ("RGBA",), (he,))
+        _, ref, _ = self.resolve(he, 1, f"{node.name} Height")
+        ref.scale = vals["Distance"] * (-1.0 if node.invert else 1.0)
+        m.maps["bump"] = ref
+        m.bump_strength = strength
+
+    def const_or_mean(self, sock, chans: int):
+        """(value, textured) of an input: its constant, or its mean over a bake when textured."""
+        e = self.expr(sock)
+        if e is None:
+            v = sock.default_value
+            return (float(v) if chans == 1 else _rgb(v)), False
+        if NE.is_const(e):
+            v = NE.evaluate(e, [[0.5, 0.5]])[0]
+            return (float(v[0]) if chans == 1 else _rgb(v)), False
+        if chans == 3 and NE.channels(e) == 1:
+            e = NE.Op("to_color", (), (e,))
+        if chans == 1 and NE.channels(e) != 1:
+            e = NE.Op("to_float", ("RGBA",), (e,))
+        w, h = NE.bake_size(e, 256)
+        v = NE.bake(e, w, h).reshape(-1, NE.channels(e)).mean(0)
+        return (float(v[0]) if chans == 1 else _rgb(v)), True
+
+    def coat(self, m: Material, inp) -> None:
+        """Principled coat: Weight, Roughness, IOR, Tint (constants; a textured one by its mean)."""
+        ws = inp.get("Coat Weight")
+        if ws is None or (not ws.is_linked and float(ws.default_value) <= 0.0):
+            return
+        for attr, name, chans in (("coat_weight", "Coat Weight", 1), ("coat_roughness", "Coat Roughness", 1),
+                                  ("coat_ior", "Coat IOR", 1), ("coat_tint", "Coat Tint", 3)):
+            v, textured = self.const_or_mean(inp[name], chans)
+            setattr(m, attr, v)
+            if textured:
+                self.approx.append(f"'{name}' is textured; its mean is used")
+        m.coat_weight = min(max(m.coat_weight, 0.0), 1.0)
+        cn = inp.get("Coat Normal")
+        if cn is not None and _follow(cn) is not None:
+            self.approx.append("'Coat Normal' is linked; the coat uses the smooth normal")
+        if m.coat_weight > 0.0:
+            self.approx.append("in the raster passes the coat is in the BSDF lit by lights (its lobe and its "
+                               "attenuation of the layers below), not in environment and indirect light")
+            if m.transmission > 0.0:
+                self.approx.append("the coat does not cover the transmission part (light sampling alone finds "
+                                   "its reflection there)")
+
+    def sheen(self, m: Material, inp) -> None:
+        """Principled sheen: Weight, Roughness, Tint (constants; a textured one by its mean)."""
+        ws = inp.get("Sheen Weight")
+        if ws is None or (not ws.is_linked and float(ws.default_value) <= 0.0):
+            return
+        for attr, name, chans in (("sheen_weight", "Sheen Weight", 1), ("sheen_roughness", "Sheen Roughness", 1),
+                                  ("sheen_tint", "Sheen Tint", 3)):
+            v, textured = self.const_or_mean(inp[name], chans)
+            setattr(m, attr, v)
+            if textured:
+                self.approx.append(f"'{name}' is textured; its mean is used")
+        m.sheen_weight = max(m.sheen_weight, 0.0)
+        if m.sheen_weight > 0.0:
+            self.approx.append("the sheen's lobe shape is approximated (a Charlie distribution scaled to the "
+                               "albedo of Cycles' microfiber sheen, which it takes off the layers below as Cycles "
+                               "does); the raster passes shade it lit by lights only")
 
     def ignore_linked(self, names) -> None:
         for name in names:
@@ -300,9 +420,11 @@ class _MaterialReader:
         if tw is not None:
             self.scalar(m, "transmission", tw)
             m.transmission = min(max(m.transmission, 0.0), 1.0)
+        self.coat(m, inp)
+        self.sheen(m, inp)
         # Lobes GI Preview does not model: keep the Principled values, flag them.
         ignored = []
-        for name in ("Coat Weight", "Sheen Weight", "Subsurface Weight"):
+        for name in ("Subsurface Weight",):
             s = inp.get(name)
             if s is not None and (s.is_linked or float(s.default_value) > 0.0):
                 ignored.append(name)
@@ -324,7 +446,9 @@ class _MaterialReader:
             m.support = "approximated: " + "; ".join(self.approx)
         m.exact = not (self.unsupported or self.approx)
         m._tangent_uv = self.tangent_uv
+        m._color_attr = self.color_attr
         m._uv_names = set(self.uv_names)
+        m._uv_square = list(self.uv_square)
         return m
 
 
@@ -584,7 +708,9 @@ class _LobeMaterial:
         top.exact = not (unsupported or approx)
         tangent = next((r.tangent_uv for _, _, r in weighted if r.tangent_uv is not None), None)
         top._tangent_uv = tangent
+        top._color_attr = next((r.color_attr for _, _, r in weighted if r.color_attr is not None), None)
         top._uv_names = set().union(*[r.uv_names for r in readers]) if readers else set()
+        top._uv_square = [x for r in readers for x in r.uv_square]
         for _, m, _ in weighted:
             m.maps.pop("normal", None)  # the lobes share the material's shading normal
             m.emission_color, m.emission_strength = (0.0, 0.0, 0.0), 0.0
@@ -615,6 +741,11 @@ class _LobeMaterial:
             top.maps["normal"] = normals[0]
             if len(normals) > 1:
                 self.notes.append("the lobes share the first lobe's normal map")
+        bumps = [m for _, m, _ in weighted if "bump" in m.maps]
+        if bumps:
+            top.maps["bump"], top.bump_strength = bumps[0].maps["bump"], bumps[0].bump_strength
+            if len(bumps) > 1:
+                self.notes.append("the lobes share the first lobe's bump")
         if len(weighted) == 1 and not weighted[0][1].maps.get("weight") and self.raster_diffuse(weighted[0][1]) > 0:
             m = weighted[0][1]
             k = m.weight * self.raster_diffuse(m)
@@ -656,6 +787,8 @@ class _Exporter:
         self._bake_ids: dict[str, int] = {}
         self._tangent_maps: dict[int, str] = {}  # material index -> UV map its normal map uses
         self._uv_names: dict[int, set] = {}  # material index -> UV maps named by its nodes
+        self._uv_square: dict[int, list] = {}
+        self._color_maps: dict[int, str] = {}  # material index -> colour attribute its nodes read  # material index -> inputs baked from UV values
         self._mesh_ids: dict[tuple, int] = {}
         self._default_material: int | None = None
         self.cache = cache
@@ -683,6 +816,7 @@ class _Exporter:
         if key in self._material_ids:
             return self._material_ids[key]
         m = self._convert_material(mat)
+        m.bump_correction = bool(getattr(getattr(mat, "cycles", None), "use_bump_map_correction", True))
         for w in m.warnings:
             self.warn(w)
         idx = len(self.data.materials)
@@ -691,9 +825,14 @@ class _Exporter:
         tu = getattr(m, "_tangent_uv", None)
         if tu is not None:
             self._tangent_maps[idx] = tu
+        ca = getattr(m, "_color_attr", None)
+        if ca is not None:
+            self._color_maps[idx] = ca
         names = getattr(m, "_uv_names", None)
         if names:
             self._uv_names[idx] = names
+        if getattr(m, "_uv_square", None):
+            self._uv_square[idx] = m._uv_square
         return idx
 
     def _fallback(self, mat, reason: str) -> Material:
@@ -824,18 +963,20 @@ class _Exporter:
         idx = self._mesh_ids.get(full_key)
         if idx is None:
             tangent_uv = next((self._tangent_maps[i] for i in lut if i in self._tangent_maps), None)
+            color_attr = next((self._color_maps[i] for i in lut if i in self._color_maps), None)
             self._check_uv_names(mesh, lut)
+            self._check_uv_square(mesh, lut)
             m = None
             ckey = None
             if self.cache is not None:
-                ckey = (key, lut, len(mesh.vertices), len(mesh.polygons), name, tangent_uv)
+                ckey = (key, lut, len(mesh.vertices), len(mesh.polygons), name, tangent_uv, color_attr)
                 hit = self.cache._meshes.get(ckey)
                 if hit is not None:
                     m = hit[0]
                     hit[1].update(deps)
                     self.meshes_reused += 1
             if m is None:
-                m = _read_mesh(mesh, np.asarray(lut, np.int32), name, tangent_uv, self.warn)
+                m = _read_mesh(mesh, np.asarray(lut, np.int32), name, tangent_uv, self.warn, color_attr)
                 self.meshes_read += 1
                 if ckey is not None:
                     self.cache._meshes[ckey] = (m, set(deps))
@@ -845,6 +986,32 @@ class _Exporter:
             self.data.meshes.append(m)
             self._mesh_ids[full_key] = idx
         return idx
+
+    def _check_uv_square(self, mesh, lut) -> None:
+        """A material input baked from a function of the UV values (not an image) is exact
+        where the UVs stay inside [0, 1]: say so when this mesh's go outside (Extend there)."""
+        mats = [i for i in set(lut) if i in self._uv_square]
+        if not mats:
+            return
+        layers = mesh.uv_layers
+        active = getattr(layers, "active_render", None) or layers.active
+        inside = True
+        if active is not None and len(mesh.loops):
+            uv = np.empty(2 * len(mesh.loops), np.float32)
+            active.data.foreach_get("uv", uv)
+            inside = bool(uv.min() >= -1e-4 and uv.max() <= 1.0 + 1e-4)
+        if inside:
+            return
+        for i in mats:
+            m = self.data.materials[i]
+            msg = (f"Material '{m.name}': {', '.join(repr(x) for x in self._uv_square[i])} baked over the UV "
+                   f"square [0, 1] (Extend outside it, where mesh '{mesh.name}' has UVs)")
+            if msg not in m.warnings:
+                m.warnings.append(msg)
+                m.exact = False
+                if m.support == "exact":
+                    m.support = "approximated: " + msg.split(": ", 1)[1]
+                self.warn(msg)
 
     def _check_uv_names(self, mesh, lut) -> None:
         """A material whose nodes name a UV map other than the mesh's render UV map is read
@@ -1126,7 +1293,33 @@ def _read_tangents(mesh, uv_name: str, corners: np.ndarray, warn) -> np.ndarray 
     return np.ascontiguousarray(out[corners])
 
 
-def _read_mesh(mesh, lut: np.ndarray, name: str, tangent_uv: str | None = None, warn=None) -> Mesh:
+def _read_colors(mesh, name: str, corners: np.ndarray, corner_vert: np.ndarray, warn) -> np.ndarray | None:
+    """Per-corner linear RGBA of the colour attribute ``name`` ("" = the render colour
+    attribute), point or corner domain; None (black in Cycles) when the mesh has none."""
+    ca = mesh.color_attributes
+    attr = ca.get(name) if name else None
+    if attr is None and not name:
+        idx = getattr(ca, "render_color_index", -1)
+        attr = ca[idx] if 0 <= idx < len(ca) else (ca.active_color if hasattr(ca, "active_color") else None)
+    if attr is None:
+        attr = mesh.attributes.get(name) if name else None
+        if attr is None or attr.data_type not in ("FLOAT_COLOR", "BYTE_COLOR"):
+            warn(f"Mesh '{mesh.name}' has no colour attribute '{name}'; it reads as black (as in Cycles)")
+            return None
+    n = len(attr.data)
+    buf = np.empty(4 * n, np.float32)
+    attr.data.foreach_get("color", buf)
+    buf = buf.reshape(n, 4)
+    if attr.domain == "POINT":
+        return np.ascontiguousarray(buf[corner_vert[corners]])
+    if attr.domain == "CORNER":
+        return np.ascontiguousarray(buf[corners])
+    warn(f"Mesh '{mesh.name}': colour attribute '{attr.name}' on the {attr.domain} domain is not read")
+    return None
+
+
+def _read_mesh(mesh, lut: np.ndarray, name: str, tangent_uv: str | None = None, warn=None,
+               color_attr: str | None = None) -> Mesh:
     """Triangle-soup arrays of an evaluated mesh (no per-element Python loops)."""
     mesh.calc_loop_triangles()
     tris = mesh.loop_triangles
@@ -1170,9 +1363,13 @@ def _read_mesh(mesh, lut: np.ndarray, name: str, tangent_uv: str | None = None, 
     tangents = None
     if tangent_uv is not None and nt:
         tangents = _read_tangents(mesh, tangent_uv, corners, warn or (lambda msg: None))
+    colors = None
+    if color_attr is not None and nt:
+        colors = _read_colors(mesh, color_attr, corners, corner_vert, warn or (lambda msg: None))
     return Mesh(name=name, positions=np.ascontiguousarray(positions),
                 normals=np.ascontiguousarray(normals), uvs=np.ascontiguousarray(uvs),
-                material_ids=np.ascontiguousarray(material_ids, dtype=np.int32), tangents=tangents)
+                material_ids=np.ascontiguousarray(material_ids, dtype=np.int32), tangents=tangents,
+                colors=colors)
 
 
 def export_scene(depsgraph, *, width: int | None = None, height: int | None = None,

@@ -340,6 +340,7 @@ class SceneBVH:
     blas_nodes: np.ndarray  # (N, 8) float32
     verts: np.ndarray  # (3T, 4) float32: object-space position xyz, w = uv.y
     normals: np.ndarray  # (3T, 8) float32: corner normal xyz, uv.x, tangent xyz, bitangent sign
+    colors: np.ndarray  # (3T, 4) float32: corner colour attribute (empty when no mesh has one)
     tri_info: np.ndarray  # (T, 2) int32: original triangle index in its mesh, material id
     mesh_root: np.ndarray  # (M,) int32 root node of each mesh's BLAS
     mesh_tri_offset: np.ndarray  # (M,) int32 first BVH-ordered triangle of each mesh
@@ -355,6 +356,8 @@ class SceneBVH:
     def from_scene(cls, scene, max_leaf: int = MAX_LEAF) -> "SceneBVH":
         t0 = time.perf_counter()
         nodes, verts, normals, infos, roots, offs, bounds, blas_list = [], [], [], [], [], [], [], []
+        colors = []
+        any_colors = any(getattr(m, "colors", None) is not None for m in scene.meshes)
         node_base = 0
         tri_base = 0
         for mesh in scene.meshes:
@@ -383,6 +386,11 @@ class SceneBVH:
                     nrm[:, 4:8] = np.asarray(mesh.tangents, np.float32).reshape(-1, 4)[corner]
             verts.append(v)
             normals.append(nrm)
+            if any_colors:
+                col = np.zeros((3 * T, 4), np.float32)
+                if T and getattr(mesh, "colors", None) is not None:
+                    col[:] = np.asarray(mesh.colors, np.float32).reshape(-1, 4)[corner]
+                colors.append(col)
             info = np.zeros((T, 2), np.int32)
             info[:, 0] = order
             info[:, 1] = np.asarray(mesh.material_ids, np.int32)[order] if T else 0
@@ -395,6 +403,7 @@ class SceneBVH:
             blas_nodes=cat(nodes, (0, 8), np.float32),
             verts=cat(verts, (0, 4), np.float32),
             normals=cat(normals, (0, 8), np.float32),
+            colors=cat(colors, (0, 4), np.float32),
             tri_info=cat(infos, (0, 2), np.int32),
             mesh_root=np.asarray(roots, np.int32),
             mesh_tri_offset=np.asarray(offs, np.int32),
@@ -463,6 +472,7 @@ class SceneBVH:
             "tlas": nz(self.tlas_nodes, (1, 8)),
             "verts": nz(self.verts, (1, 4)),
             "normals": nz(self.normals, (1, 8)),
+            "colors": nz(self.colors, (1, 4)),
             "tri_info": nz(self.tri_info, (1, 2)),
             "instances": nz(self.instances, (1, 36)),
             "material_map": nz(self.material_map, (1,)),

@@ -20,17 +20,18 @@ from .world_map import WorldGPU
 log = logging.getLogger(__name__)
 
 # One source of truth for the layouts (floats per record); see common.glsl.
-MATERIAL_FLOATS = 56  # 6 vec4 of values + one vec4 per texture map (MATERIAL_MAPS order)
+MATERIAL_FLOATS = 72  # 6 vec4 of values, one vec4 per texture map (MATERIAL_MAPS order), coat and sheen 3 vec4
 LIGHT_FLOATS = 28
 EMITTER_FLOATS = 16
 LIGHT_MESH = 4
 MAX_TEXTURE_SIZE = 2048
 MAX_EMITTERS = 1 << 16
 # Vertex layout: position 3, normal 3, uv 2, material id 1 (float, exact below 2^24),
-# tangent 4 (xyz, bitangent sign; zero when the mesh has no normal-mapped material).
-VERTEX_FORMAT = "3f 3f 2f 1f 4f"
-VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_material", "in_tangent")
-VERTEX_FLOATS = 13
+# tangent 4 (xyz, bitangent sign; zero when the mesh has no normal-mapped material),
+# colour 4 (the colour attribute a material reads; zero when none).
+VERTEX_FORMAT = "3f 3f 2f 1f 4f 4f"
+VERTEX_ATTRS = ("in_position", "in_normal", "in_uv", "in_material", "in_tangent", "in_color")
+VERTEX_FLOATS = 17
 _EXTENSIONS = {"REPEAT": 0, "EXTEND": 1, "CLIP": 2, "MIRROR": 3}
 # A buffer bigger than this is refused with a clear message rather than crashing the driver.
 MAX_VERTEX_BYTES = 2 << 30
@@ -54,7 +55,8 @@ def set_uniform(prog, name: str, value):
 def _mesh_key(mesh, material_map) -> str:
     h = hashlib.blake2b(digest_size=16)
     for arr in (mesh.positions, mesh.normals, mesh.uvs, mesh.material_ids,
-                mesh.tangents if mesh.tangents is not None else np.zeros(0, np.float32)):
+                mesh.tangents if mesh.tangents is not None else np.zeros(0, np.float32),
+                mesh.colors if getattr(mesh, "colors", None) is not None else np.zeros(0, np.float32)):
         a = np.ascontiguousarray(arr)
         h.update(str(a.shape).encode())
         h.update(a.tobytes())
@@ -72,6 +74,9 @@ def pack_map(scene: SceneData, ref) -> np.ndarray:
     """One texture map of a material record (common.glsl ``Material.maps``): layer (-1 none),
     width * 4096 + height of its image in the layer, flags (channel + 1 | Closest << 3 |
     extension << 4), scale."""
+    from .scene_data import VERTEX_COLOR
+    if ref is not None and ref.texture == VERTEX_COLOR:
+        return np.array([VERTEX_COLOR, 0.0, ref.channel + 1, ref.scale], np.float32)
     if ref is None or not (0 <= ref.texture < len(scene.textures)):
         return np.array([-1.0, 0.0, 0.0, 1.0], np.float32)
     w, h = layer_size(scene.textures[ref.texture].pixels)
@@ -94,9 +99,14 @@ def _pack_record(scene: SceneData, m, out: np.ndarray, first_lobe: int = -1) -> 
     out[12:15] = m.specular_tint
     out[15] = 1.0 if m.exact else 0.0
     out[16:20] = (BSDF_KINDS.index(m.bsdf), m.transmission, m.weight, 1.0 if m.transmits else 0.0)
-    out[20:24] = (first_lobe, len(m.lobes) if first_lobe >= 0 else 0, 0.0, 0.0)
+    out[20:24] = (first_lobe, len(m.lobes) if first_lobe >= 0 else 0, m.bump_strength if "bump" in maps else 0.0,
+                  1.0 if m.bump_correction else 0.0)
     for k, key in enumerate(MATERIAL_MAPS):
         out[24 + 4 * k:28 + 4 * k] = pack_map(scene, maps.get(key))
+    c = 24 + 4 * len(MATERIAL_MAPS)
+    out[c:c + 4] = (m.coat_weight, m.coat_roughness, m.coat_ior, 0.0)
+    out[c + 4:c + 8] = (*m.coat_tint, m.sheen_weight)
+    out[c + 8:c + 12] = (*m.sheen_tint, m.sheen_roughness)
 
 
 def pack_materials(scene: SceneData) -> np.ndarray:
@@ -335,6 +345,9 @@ class GPUScene:
             data[:, 8] = np.repeat(mids, 3).astype(np.float32)
             if mesh.tangents is not None and mesh.tangents.shape[0] == n:
                 data[:, 9:13] = mesh.tangents
+            cols = getattr(mesh, "colors", None)
+            if cols is not None and cols.shape[0] == n:
+                data[:, 13:17] = cols
             try:
                 vbo = self.ctx.buffer(data.tobytes()) if n else None
             except Exception as exc:

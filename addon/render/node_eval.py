@@ -560,13 +560,19 @@ def bake(e, width: int, height: int) -> np.ndarray:
     return evaluate(e, uv).reshape(height, width, -1)
 
 
+GRAPH_BAKE_SIZE = 256  # grid of a bake that reads no image (a value graph over UV)
+
+
 def bake_size(e, cap: int = 2048) -> tuple[int, int]:
-    """Grid size for a bake: the largest image involved (times an integer Mapping scale)."""
+    """Grid size for a bake: the largest image involved; GRAPH_BAKE_SIZE when the expression
+    reads the UV map but no image (a function of UV sampled finely enough for its gradient)."""
     w = h = 1
     for im in images(e):
         if im.pixels is not None:
             h = max(h, int(im.pixels.shape[0]))
             w = max(w, int(im.pixels.shape[1]))
+    if uv_maps_other(e):
+        w, h = max(w, GRAPH_BAKE_SIZE), max(h, GRAPH_BAKE_SIZE)
     return min(cap, w), min(cap, h)
 
 

@@ -67,6 +67,7 @@ RT_BINDINGS = {
     "instances": 13,
     "material_map": 14,
     "light_select": 15,
+    "colors": 16,
 }
 _DEFINE = {
     "nodes": "RT_BINDING_BLAS_NODES",
@@ -77,6 +78,7 @@ _DEFINE = {
     "instances": "RT_BINDING_INSTANCES",
     "material_map": "RT_BINDING_MATERIAL_MAP",
     "light_select": "RT_BINDING_LIGHT_SELECT",
+    "colors": "RT_BINDING_COLORS",
 }
 
 

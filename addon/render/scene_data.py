@@ -46,6 +46,8 @@ class Mesh:
     uvs: (3*T, 2) float32 (zeros when the mesh has no UV map).
     tangents: (3*T, 4) float32 or None: MikkTSpace tangent xyz of the UV map and the
     bitangent sign (Blender's ``mesh.calc_tangents``), read when a material normal-maps it.
+    colors: (3*T, 4) float32 or None: the colour attribute a material reads (Color Attribute
+    node), per corner, linear; a material map with ``texture == VERTEX_COLOR`` reads it.
     material_slots: (T,) int32, index into ``SceneData.materials`` (already resolved
     through the object's material slots; -1 = default material).
     """
@@ -56,6 +58,7 @@ class Mesh:
     uvs: np.ndarray
     material_ids: np.ndarray
     tangents: np.ndarray | None = None
+    colors: np.ndarray | None = None  # (3*T, 4) float32 linear RGBA of a colour attribute, per corner
 
     @property
     def triangle_count(self) -> int:
@@ -89,9 +92,11 @@ class Instance:
     instance_id: str = ""
 
 
+VERTEX_COLOR = -2  # TexRef.texture of a map that reads the mesh's colour attribute (Mesh.colors)
+
 # The Principled inputs a texture can drive (Material.maps keys).
 MATERIAL_MAPS = ("base_color", "roughness", "metallic", "alpha", "emission", "normal",
-                 "specular_ior_level", "weight")
+                 "specular_ior_level", "weight", "bump")
 
 # BSDF kinds of a Material or of one of its lobes (common.glsl BSDF_* in this order).
 BSDF_KINDS = ("principled", "glossy", "glass", "refraction", "translucent")
@@ -120,7 +125,9 @@ class Material:
     Scalars hold the input's value, or its mean over the texture when ``maps`` has one for
     that input (consumers that ignore textures see the average). ``maps['emission']`` is the
     emitted radiance (Emission Color x Strength), ``maps['normal']`` a tangent-space normal
-    map (RGB in [0, 1], strength in ``scale``) over the mesh's ``tangents``.
+    map (RGB in [0, 1], strength in ``scale``) over the mesh's ``tangents``, ``maps['bump']``
+    a Bump node's height (``scale`` = Distance, negated when inverted; ``bump_strength`` its
+    Strength), applied after the normal map as Cycles' Bump node does.
     ``support`` is "exact", "approximated: <how>" or "unsupported: <node>" (what the
     exporter understood of the node tree).
 
@@ -149,6 +156,15 @@ class Material:
     bsdf: str = "principled"
     transmission: float = 0.0
     weight: float = 1.0
+    bump_strength: float = 0.0  # the Bump node's Strength (0: no bump, see maps['bump'])
+    bump_correction: bool = True  # Cycles' Bump Map Correction (material settings)
+    coat_weight: float = 0.0  # Principled coat (a GGX dielectric layer over the rest)
+    coat_roughness: float = 0.03
+    coat_ior: float = 1.5
+    coat_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    sheen_weight: float = 0.0  # Principled sheen (Cycles' microfiber sheen on top)
+    sheen_roughness: float = 0.5
+    sheen_tint: tuple[float, float, float] = (1.0, 1.0, 1.0)
     lobes: list = field(default_factory=list)  # [Material], see above
     support: str = "exact"
     # True when the material's node tree was fully understood; False = viewport-colour fallback.
@@ -377,7 +393,9 @@ class SceneData:
 
 # Fields hashed only when set (not None, not empty), so scenes that do not use them keep their
 # fingerprints (and the Cycles references cached under them).
-_HASHED_WHEN_SET = ("maps", "tangents", "map", "source", "sun_light", "film_transparent")
+_HASHED_WHEN_SET = ("maps", "tangents", "colors", "bump_strength", "bump_correction",
+                    "coat_weight", "coat_roughness", "coat_ior", "coat_tint", "sheen_weight", "sheen_roughness",
+                    "sheen_tint", "map", "source", "sun_light", "film_transparent")
 
 
 class SceneError(ValueError):

@@ -116,14 +116,14 @@ def library() -> ShaderLibrary:
 
 
 BRDF_LUT_UNIT = 30  # fixed texture unit of lib/brdf_tables.glsl's u_brdf_lut
-LUT_ROWS = 14
+LUT_ROWS = 16
 _luts: dict = {}
 
 
 def brdf_lut(ctx):
     """Cycles' GGX albedo tables (render/brdf_tables.py) as one R32F texture of ``ctx``
-    (1024 x 14: GGX_E, GGX_EAVG, then GGX_SCHLICK_S, GGX_GLASS_E and GGX_GLASS_INV_E in four
-    rows each), made once per context."""
+    (1024 x 15: GGX_E, GGX_EAVG, then GGX_SCHLICK_S, GGX_GLASS_E and GGX_GLASS_INV_E in four
+    rows each, SHEEN_E, then SHEEN_ALBEDO of render/sheen_table.py), made once per context."""
     key = id(ctx)
     hit = _luts.get(key)
     if hit is not None and hit[0] is ctx:
@@ -138,6 +138,9 @@ def brdf_lut(ctx):
     data[2:6] = np.asarray(T.GGX_SCHLICK_S, np.float32).reshape(4, 1024)
     data[6:10] = np.asarray(T.GGX_GLASS_E, np.float32).reshape(4, 1024)
     data[10:14] = np.asarray(T.GGX_GLASS_INV_E, np.float32).reshape(4, 1024)
+    data[14] = T.SHEEN_E
+    from .sheen_table import SHEEN_ALBEDO
+    data[15] = SHEEN_ALBEDO
     tex = ctx.texture((1024, LUT_ROWS), 1, data.tobytes(), dtype="f4")
     import moderngl
 

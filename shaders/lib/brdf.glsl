@@ -37,6 +37,16 @@ struct Surface {
     bool transmits;     // some lobe of the material transmits (light below the surface counts)
     int material;       // record of the material whose lobe list the path tracer evaluates, -1 none
     vec2 uv;            // where the lobes' textures are sampled
+    vec3 ns;            // the smooth normal under a normal / bump map (Cycles' sd->N); 0 = none
+    bool bump_correction; // soften diffuse light at grazing angles when N != ns (Bump Map Correction)
+    float coat;         // Principled coat weight (0: none)
+    float coat_alpha;   // coat GGX alpha
+    float coat_ior;
+    vec3 coat_tint;
+    vec3 coat_n;        // the coat's normal (Cycles: the smooth normal); 0 = the shading normal
+    float sheen;        // Principled sheen weight (0: none)
+    float sheen_rough;
+    vec3 sheen_tint;
 };
 
 float fresnel_dielectric(float cosi, float eta) {
@@ -78,6 +88,16 @@ Surface make_surface(Material m, vec3 base_color) {
     s.transmits = false;
     s.material = -1;
     s.uv = vec2(0.0);
+    s.ns = vec3(0.0);
+    s.bump_correction = m.lobes.w > 0.5;
+    s.coat = clamp(m.coat.x, 0.0, 1.0);
+    s.coat_alpha = max(sqr(clamp(m.coat.y, 0.0, 1.0)), 1e-4);
+    s.coat_ior = max(m.coat.z, 1.0001);
+    s.coat_tint = m.coat_tint.rgb;
+    s.coat_n = vec3(0.0);
+    s.sheen = max(m.coat_tint.w, 0.0);
+    s.sheen_rough = clamp(m.sheen.w, 0.0, 1.0);
+    s.sheen_tint = max(m.sheen.rgb, vec3(0.0));
     return s;
 }
 
@@ -230,6 +250,105 @@ vec2 lobe_weights(Surface s, float NoV) {
     return vec2(diff, spec) / tot;
 }
 
+float ggx_vndf_pdf(float NoV, float NoH, float a2);
+
+// ---- Principled sheen: Cycles' microfiber sheen (Zeltner et al. 2022, an LTC fit) with its
+// directional albedo A(roughness, cos) measured from Cycles (render/sheen_table.py) and the lobe's
+// shape approximated by the Charlie distribution (Estevez & Kulla 2017) of alpha = roughness^2
+// with Neubelt & Pettineo's visibility, scaled to albedo A (its own albedo E: SHEEN_E,
+// gen_brdf_tables.py). As in Cycles it is the top layer, scaling everything below by
+// 1 - weight * max(tint) * A.
+float sheen_table(bool cycles, float rough, float mu) {
+    float x = clamp(rough, 0.0, 1.0) * 31.0, y = clamp(mu, 0.0, 1.0) * 31.0;
+    int i0 = min(int(x), 31), j0 = min(int(y), 31);
+    int i1 = min(i0 + 1, 31), j1 = min(j0 + 1, 31);
+    float tx = x - float(i0), ty = y - float(j0);
+    float v00 = cycles ? SHEEN_ALBEDO_at(i0 * 32 + j0) : SHEEN_E_at(i0 * 32 + j0);
+    float v10 = cycles ? SHEEN_ALBEDO_at(i1 * 32 + j0) : SHEEN_E_at(i1 * 32 + j0);
+    float v01 = cycles ? SHEEN_ALBEDO_at(i0 * 32 + j1) : SHEEN_E_at(i0 * 32 + j1);
+    float v11 = cycles ? SHEEN_ALBEDO_at(i1 * 32 + j1) : SHEEN_E_at(i1 * 32 + j1);
+    return mix(mix(v00, v10, tx), mix(v01, v11, tx), ty);
+}
+float sheen_E(float rough, float mu) { return sheen_table(false, rough, mu); }
+float sheen_A(float rough, float mu) { return max(sheen_table(true, rough, mu), 0.0); }
+
+float sheen_attenuation(Surface s, float NoV) {
+    if (s.sheen <= 0.0) return 1.0;
+    return clamp(1.0 - s.sheen * max3(s.sheen_tint) * sheen_A(s.sheen_rough, NoV), 0.0, 1.0);
+}
+
+vec3 sheen_eval(Surface s, vec3 N, vec3 V, vec3 L) {
+    if (s.sheen <= 0.0) return vec3(0.0);
+    float NoL = dot(N, L), NoV = max(dot(N, V), 1e-4);
+    if (NoL <= 0.0) return vec3(0.0);
+    float a = clamp(s.sheen_rough * s.sheen_rough, 0.01, 1.0);
+    vec3 H = normalize(V + L);
+    float sin2 = max(1.0 - sqr(dot(N, H)), 0.0);
+    float D = (2.0 + 1.0 / a) * pow(sin2, 0.5 / a) * (0.5 * INV_PI);
+    float vis = 1.0 / (4.0 * (NoL + NoV - NoL * NoV));
+    float k = sheen_A(s.sheen_rough, NoV) / max(sheen_E(s.sheen_rough, NoV), 1e-4);
+    return s.sheen * s.sheen_tint * (D * vis * NoL * k);
+}
+
+// Probability of sampling the sheen (cosine-weighted) rather than the layers below.
+float sheen_select(Surface s, float NoV) {
+    if (s.sheen <= 0.0) return 0.0;
+    float e = s.sheen * luminance(s.sheen_tint) * sheen_A(s.sheen_rough, NoV);
+    return clamp(e / max(e + sheen_attenuation(s, NoV) * max(luminance(s.base_color) + s.f0 + s.metallic, 0.05), 1e-6),
+                 0.0, 0.9);
+}
+
+// ---- Principled coat (Cycles: a GGX dielectric reflection of weight Coat Weight on top; the
+// layers below scaled by 1 - weight * F(cos(Nc, V), coat IOR) (the coat's albedo, Fresnel of a
+// smooth interface) and by mix(1, tint^(1 / cos(refracted V)), weight), the tint's absorption
+// along the path through a coat of unit thickness). Nc: the coat normal facing V.
+vec3 coat_normal(Surface s, vec3 N) {
+    vec3 n = dot(s.coat_n, s.coat_n) > 0.0 ? s.coat_n : N;
+    return dot(n, N) < 0.0 ? -n : n;
+}
+
+vec3 coat_attenuation(Surface s, vec3 N, vec3 V) {
+    if (s.coat <= 0.0) return vec3(1.0);
+    vec3 Nc = coat_normal(s, N);
+    float cosNI = dot(V, Nc);
+    float a = 1.0 - s.coat * (cosNI > 0.0 ? fresnel_dielectric(cosNI, s.coat_ior) : 0.0);
+    vec3 t = vec3(1.0);
+    if (s.coat_tint != vec3(1.0)) {
+        float cosNT = sqrt(max(1.0 - (1.0 - cosNI * cosNI) / (s.coat_ior * s.coat_ior), 1e-8));
+        t = mix(vec3(1.0), pow(clamp(s.coat_tint, 0.0, 1.0), vec3(1.0 / cosNT)), s.coat);
+    }
+    return a * t;
+}
+
+// The coat lobe, f * cos (single-scattering GGX with exact dielectric Fresnel).
+vec3 coat_eval(Surface s, vec3 N, vec3 V, vec3 L) {
+    if (s.coat <= 0.0) return vec3(0.0);
+    vec3 Nc = coat_normal(s, N);
+    float NoL = dot(Nc, L), NoV = dot(Nc, V);
+    if (NoL <= 0.0 || NoV <= 0.0) return vec3(0.0);
+    vec3 H = normalize(V + L);
+    float a2 = s.coat_alpha * s.coat_alpha;
+    float F = fresnel_dielectric(max(dot(V, H), 0.0), s.coat_ior);
+    return vec3(s.coat * F * ggx_D(max(dot(Nc, H), 0.0), a2) * ggx_V(NoV, NoL, a2) * NoL);
+}
+
+float coat_pdf(Surface s, vec3 N, vec3 V, vec3 L) {
+    vec3 Nc = coat_normal(s, N);
+    float NoL = dot(Nc, L), NoV = dot(Nc, V);
+    if (NoL <= 0.0 || NoV <= 0.0) return 0.0;
+    return ggx_vndf_pdf(NoV, max(dot(Nc, normalize(V + L)), 0.0), s.coat_alpha * s.coat_alpha);
+}
+
+// Probability of sampling the coat lobe: its albedo against what it leaves to the layers below.
+float coat_select(Surface s, vec3 N, vec3 V) {
+    if (s.coat <= 0.0) return 0.0;
+    vec3 Nc = coat_normal(s, N);
+    float cosNI = max(dot(V, Nc), 1e-4);
+    float c = s.coat * fresnel_dielectric(cosNI, s.coat_ior);
+    float below = luminance(coat_attenuation(s, N, V)) * max(luminance(s.base_color) + s.f0 + s.metallic, 0.05);
+    return clamp(c / max(c + below, 1e-6), 0.0, 0.95);
+}
+
 struct BsdfEval {
     vec3 diffuse;   // f * cos for the diffuse lobe
     vec3 glossy;    // f * cos for the specular lobe
@@ -270,6 +389,16 @@ BsdfEval eval_principled_keep(Surface s, vec3 N, vec3 V, vec3 L, float keep) {
     }
     e.diffuse = (1.0 - s.metallic) * diff * NoL * keep;
     e.glossy = mix(spec_d * keep, spec_m, s.metallic) * NoL;
+    if (s.coat > 0.0) {
+        vec3 att = coat_attenuation(s, N, V);
+        e.diffuse *= att;
+        e.glossy = e.glossy * att + coat_eval(s, N, V, L);
+    }
+    if (s.sheen > 0.0) {
+        float att = sheen_attenuation(s, NoV);
+        e.diffuse = e.diffuse * att + sheen_eval(s, N, V, L);
+        e.glossy *= att;
+    }
     return e;
 }
 
@@ -296,8 +425,27 @@ float ggx_vndf_pdf(float NoV, float NoH, float a2) {
     return ggx_G1(NoV, a2) * ggx_D(NoH, a2) / (4.0 * max(NoV, 1e-6));
 }
 
-// Sample L from the principled BSDF (lobe chosen by lobe_weights). Returns pdf via out.
+float pdf_principled(Surface s, vec3 N, vec3 V, vec3 L);
+
+// Sample L from the principled BSDF (the coat with probability coat_select, else a lobe chosen
+// by lobe_weights). Returns pdf via out.
 vec3 sample_principled(Surface s, vec3 N, vec3 V, vec3 u, out float pdf) {
+    float psh = sheen_select(s, max(dot(N, V), 1e-4));
+    if (u.z < psh) {
+        vec3 L = to_world(sample_cosine_hemisphere(u.xy), N);
+        pdf = pdf_principled(s, N, V, L);
+        return L;
+    }
+    u.z = psh > 0.0 ? clamp((u.z - psh) / (1.0 - psh), 0.0, 0.99999994) : u.z;
+    float pc = coat_select(s, N, V);
+    if (u.z < pc) {
+        vec3 Nc = coat_normal(s, N);
+        vec3 Vl = to_local(V, Nc);
+        vec3 L = to_world(reflect(-Vl, sample_ggx_vndf(Vl, s.coat_alpha, u.xy)), Nc);
+        pdf = pdf_principled(s, N, V, L);
+        return L;
+    }
+    u.z = pc > 0.0 ? clamp((u.z - pc) / (1.0 - pc), 0.0, 0.99999994) : u.z;
     float NoV = max(dot(N, V), 1e-4);
     vec2 w = lobe_weights(s, NoV);
     vec3 L;
@@ -309,22 +457,23 @@ vec3 sample_principled(Surface s, vec3 N, vec3 V, vec3 u, out float pdf) {
         vec3 Ll = reflect(-Vl, Hl);
         L = to_world(Ll, N);
     }
-    float NoL = dot(N, L);
-    if (NoL <= 0.0) { pdf = 0.0; return L; }
-    vec3 H = normalize(V + L);
-    float a2 = s.alpha * s.alpha;
-    pdf = w.x * NoL * INV_PI + w.y * ggx_vndf_pdf(NoV, max(dot(N, H), 0.0), a2);
+    pdf = pdf_principled(s, N, V, L);
     return L;
 }
 
 float pdf_principled(Surface s, vec3 N, vec3 V, vec3 L) {
+    float psh = sheen_select(s, max(dot(N, V), 1e-4));
+    float pc = coat_select(s, N, V) * (1.0 - psh);
+    float p = pc > 0.0 ? pc * coat_pdf(s, N, V, L) : 0.0;
     float NoL = dot(N, L);
-    if (NoL <= 0.0) return 0.0;
+    if (NoL <= 0.0) return p;
+    p += psh * NoL * INV_PI;
+    pc += psh;
     float NoV = max(dot(N, V), 1e-4);
     vec2 w = lobe_weights(s, NoV);
     vec3 H = normalize(V + L);
     float a2 = s.alpha * s.alpha;
-    return w.x * NoL * INV_PI + w.y * ggx_vndf_pdf(NoV, max(dot(N, H), 0.0), a2);
+    return p + (1.0 - pc) * (w.x * NoL * INV_PI + w.y * ggx_vndf_pdf(NoV, max(dot(N, H), 0.0), a2));
 }
 
 // ---------------------------------------------------------------- every lobe kind
@@ -512,7 +661,11 @@ vec3 sample_surface(Surface s, vec3 N, vec3 V, vec3 u, out int lobe) {
     if (s.kind == BSDF_PRINCIPLED) {
         if (s.transmission <= 0.0) {
             float pdf;
-            lobe = u.z < lobe_weights(s, NoV).x ? LOBE_DIFFUSE : LOBE_GLOSSY;
+            float psh = sheen_select(s, NoV);
+            float u1 = psh > 0.0 ? clamp((u.z - psh) / (1.0 - psh), 0.0, 0.99999994) : u.z;
+            float pc = coat_select(s, N, V);
+            float uz = pc > 0.0 ? (u1 - pc) / (1.0 - pc) : u1;
+            lobe = u.z < psh ? LOBE_DIFFUSE : ((u1 >= pc && uz < lobe_weights(s, NoV).x) ? LOBE_DIFFUSE : LOBE_GLOSSY);
             return sample_principled(s, N, V, u, pdf);
         }
         vec3 w = principled_lobe_weights(s, NoV);

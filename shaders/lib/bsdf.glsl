@@ -47,6 +47,23 @@ void bsdf_begin(Surface s) {
     }
 }
 
+// Cycles' bump_shadowing_term for a shading normal N that differs from the smooth normal Ns
+// (a normal or bump map): light L on the other side of the smooth surface than N says is
+// rejected; diffuse light is softened by a GGX shadowing G1(cos(Ns, L)) of alpha^2 =
+// tan^2(Ns, N) / 8 (Conty Estevez et al.; when the material's Bump Map Correction is on).
+vec2 bump_shadowing(Surface s, vec3 N, vec3 L) {
+    if (dot(s.ns, s.ns) <= 0.0) return vec2(1.0);
+    float cosNsI = dot(s.ns, L), cosNsN = dot(s.ns, N), cosNI = dot(N, L);
+    if (cosNsI * cosNsN * cosNI < 0.0) return vec2(0.0);
+    if (!s.bump_correction) return vec2(1.0);
+    float ci = abs(cosNsI), cd = abs(cosNsN);
+    if (cd >= 1.0 || ci >= 1.0) return vec2(1.0);
+    if (ci < 1e-6) return vec2(0.0, 1.0);
+    float a2 = clamp(0.125 * (1.0 / (cd * cd) - 1.0), 0.0, 1.0);
+    float g = 2.0 / (1.0 + sqrt(1.0 + a2 * (1.0 - ci * ci) / (ci * ci)));
+    return vec2(g, 1.0);
+}
+
 // The weighted sum of the lobes' BSDFs (s: the surface bsdf_begin loaded).
 BsdfEval bsdf_eval(Surface s, vec3 N, vec3 V, vec3 L) {
     BsdfEval e;
@@ -58,6 +75,9 @@ BsdfEval bsdf_eval(Surface s, vec3 N, vec3 V, vec3 L) {
         e.diffuse += g_lobe_w[i] * x.diffuse;
         e.glossy += g_lobe_w[i] * x.glossy;
     }
+    vec2 b = bump_shadowing(s, N, L);
+    e.diffuse *= b.x;
+    e.glossy *= b.y;
     return e;
 }
 

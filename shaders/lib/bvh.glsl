@@ -64,6 +64,11 @@ layout(std430, binding = RT_BINDING_TLAS_NODES) readonly buffer RtTlasNodes { Rt
 layout(std430, binding = RT_BINDING_VERTS) readonly buffer RtVerts { vec4 rt_verts[]; };      // xyz, w = uv.y
 // two vec4 per corner: (normal xyz, uv.x), (tangent xyz, bitangent sign; zero without one)
 layout(std430, binding = RT_BINDING_NORMALS) readonly buffer RtNormals { vec4 rt_normals[]; };
+#ifndef RT_BINDING_COLORS
+#define RT_BINDING_COLORS 16
+#endif
+// corner colour attribute, 3 per triangle in BVH order (one zero entry when no mesh has one)
+layout(std430, binding = RT_BINDING_COLORS) readonly buffer RtColors { vec4 rt_colors[]; };
 layout(std430, binding = RT_BINDING_TRI_INFO) readonly buffer RtTriInfo { ivec2 rt_tri_info[]; }; // orig tri, material
 layout(std430, binding = RT_BINDING_INSTANCES) readonly buffer RtInstances { RtInstance rt_instances[]; };
 layout(std430, binding = RT_BINDING_MATERIAL_MAP) readonly buffer RtMaterialMap { int rt_material_map[]; };
@@ -81,6 +86,9 @@ struct RtSurface {
     vec3 normal;      // world space, unit, interpolated corner normal
     vec2 uv;
     vec4 tangent;     // world-space interpolated tangent xyz (not normalised), w = bitangent sign
+    vec3 dpdu;        // world-space dP/du, dP/dv of the triangle (zero without a UV map)
+    vec3 dpdv;
+    vec4 color;       // the interpolated colour attribute (zero when the mesh has none)
     int material;     // index into SceneData.materials, -1 = default
     int triangle;     // original triangle index within its mesh
     int mesh;
@@ -310,6 +318,18 @@ RtSurface rt_surface(RtHit h) {
     s.uv = b0 * vec2(n0.w, v0.w) + h.bary.x * vec2(n1.w, v1.w) + h.bary.y * vec2(n2.w, v2.w);
     vec4 tg = b0 * t0 + h.bary.x * t1 + h.bary.y * t2;
     s.tangent = vec4(mat3(inst.object_to_world) * tg.xyz, tg.w);
+    {
+        vec2 t0 = vec2(n0.w, v0.w), t1 = vec2(n1.w, v1.w), t2 = vec2(n2.w, v2.w);
+        vec3 e1 = v1.xyz - v0.xyz, e2 = v2.xyz - v0.xyz;
+        vec2 d1 = t1 - t0, d2 = t2 - t0;
+        float det = d1.x * d2.y - d1.y * d2.x;
+        float r = abs(det) < 1e-20 ? 0.0 : 1.0 / det;
+        s.dpdu = mat3(inst.object_to_world) * ((e1 * d2.y - e2 * d1.y) * r);
+        s.dpdv = mat3(inst.object_to_world) * ((e2 * d1.x - e1 * d2.x) * r);
+    }
+    s.color = vec4(0.0);
+    if (rt_colors.length() > 3 * i + 2)
+        s.color = b0 * rt_colors[3 * i] + h.bary.x * rt_colors[3 * i + 1] + h.bary.y * rt_colors[3 * i + 2];
     ivec2 info = rt_tri_info[i];
     s.triangle = info.x;
     s.mesh = inst.info.y;

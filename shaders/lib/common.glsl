@@ -49,7 +49,8 @@ const float T_INF = 1e30;  // "no hit" ray length (e.g. towards the sun)
 #define MAP_NORMAL 5
 #define MAP_SPECULAR 6
 #define MAP_WEIGHT 7       // a lobe's weight in its material's lobe list (Mix Shader factors)
-#define MATERIAL_MAP_COUNT 8
+#define MAP_BUMP 8         // a Bump node's height (scale = Distance, negative when inverted)
+#define MATERIAL_MAP_COUNT 9
 
 // BSDF kinds of a lobe (Material.bsdf.x; scene_data.BSDF_KINDS order). Adding a kind touches
 // scene_data.BSDF_KINDS, the exporter's reading of its node and lib/brdf.glsl's
@@ -68,10 +69,14 @@ struct Material {
     vec4 spec_tint;    // rgb specular tint, w = 1 when the material was understood exactly
     vec4 bsdf;         // x = BSDF_* kind, y = Principled transmission weight, z = the lobe's weight
                        // (constant, or the mean of maps[MAP_WEIGHT]), w = 1 when some lobe transmits
-    vec4 lobes;        // x = first lobe record, y = lobe count (0: this record is the one lobe).
+    vec4 lobes;        // x = first lobe record, y = lobe count (0: this record is the one lobe),
+                       // z = Bump strength (maps[MAP_BUMP]), w = 1: Bump Map Correction.
                        // A material with lobes is, in this record, the blended approximation the
                        // G-buffer family renders; the path tracer evaluates its lobe records.
     vec4 maps[MATERIAL_MAP_COUNT];  // textures feeding the values above (lib/textures.glsl)
+    vec4 coat;         // Principled coat: weight, roughness, IOR, -
+    vec4 coat_tint;    // rgb coat tint, w = sheen weight
+    vec4 sheen;        // rgb sheen tint, w = sheen roughness
 };
 
 struct Light {

@@ -127,14 +127,17 @@ bool scene_trace(vec3 o, vec3 d, float tmin, float tmax, out SurfaceHit s) {
     int mid = (sf.material < 0 || sf.material >= u_material_count) ? u_material_count : sf.material;
     s.material = mid;
     Material m = materials[mid];
+    g_vertex_color = sf.color;
     MaterialSample ms = sample_material(u_textures, m, sf.uv);
-    s.normal = apply_normal_map(ms, sf.normal, sf.tangent);
+    s.normal = shading_normal(ms, sf.normal, sf.tangent, sf.dpdu, sf.dpdv);
     s.bsdf = make_surface(material_at(m, ms), ms.base_color);
 #ifdef RT_EXACT_BSDF  // the path tracer: the material's lobe list rather than its blended record
     s.bsdf.material = mid;
     s.bsdf.uv = sf.uv;
     s.bsdf.backfacing = dot(sf.geo_normal, d) > 0.0;
     s.bsdf.transmits = m.bsdf.w > 0.5;
+    if (ms.normal_map.w > 0.0 || ms.bump.z > 0.0) s.bsdf.ns = sf.normal;
+    s.bsdf.coat_n = sf.normal;  // an unlinked Coat Normal is the smooth normal (Cycles' sd->N)
 #endif
     return true;
 }

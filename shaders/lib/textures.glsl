@@ -35,8 +35,15 @@ vec4 tex_fetch(sampler2DArray tex, int layer, ivec2 size, int ext, int x, int y)
     return valid ? texelFetch(tex, ivec3(xi, yi, layer), 0) : vec4(0.0);
 }
 
+// The colour attribute at the point being shaded (Color Attribute node): set by the caller
+// before sample_material (gbuffer.frag from the vertex attribute, scene_trace from the hit's
+// corners); a map whose layer is MAP_LAYER_VERTEX_COLOR reads it.
+#define MAP_LAYER_VERTEX_COLOR -2.0
+vec4 g_vertex_color = vec4(0.0);
+
 // RGBA of one map at uv (no channel selection, no scale).
 vec4 sample_map_rgba(sampler2DArray tex, vec4 map, vec2 uv) {
+    if (map.x < -1.5) return g_vertex_color;
     int layer = int(map.x + 0.5);
     int wh = int(map.y + 0.5);
     ivec2 size = max(ivec2(wh / 4096, wh % 4096), ivec2(1));
@@ -71,7 +78,32 @@ float sample_map_float(sampler2DArray tex, vec4 map, vec2 uv) {
     return (ch < 0 ? luminance(c.rgb) : c[ch]) * map.w;
 }
 
-bool has_map(Material m, int k) { return m.maps[k].x >= 0.0; }
+// d(value)/du, d(value)/dv of a map at uv: the derivative of its bilinear interpolation
+// (zero for Closest, and outside [0, 1] under Clip), its channel (RGB: luminance), times its scale.
+vec2 sample_map_float_grad(sampler2DArray tex, vec4 map, vec2 uv) {
+    int layer = int(map.x + 0.5);
+    int wh = int(map.y + 0.5);
+    ivec2 size = max(ivec2(wh / 4096, wh % 4096), ivec2(1));
+    int flags = int(map.z + 0.5);
+    int ext = (flags >> 4) & 3;
+    if ((flags & 8) != 0 || map.x < -1.5) return vec2(0.0);
+    if (ext == 2 && (uv.x < 0.0 || uv.x > 1.0 || uv.y < 0.0 || uv.y > 1.0)) return vec2(0.0);
+    vec2 x = uv * vec2(size) - 0.5;
+    vec2 f = floor(x);
+    vec2 t = x - f;
+    ivec2 i0 = ivec2(f);
+    int ch = (flags & 7) - 1;
+    vec4 c00 = tex_fetch(tex, layer, size, ext, i0.x, i0.y);
+    vec4 c10 = tex_fetch(tex, layer, size, ext, i0.x + 1, i0.y);
+    vec4 c01 = tex_fetch(tex, layer, size, ext, i0.x, i0.y + 1);
+    vec4 c11 = tex_fetch(tex, layer, size, ext, i0.x + 1, i0.y + 1);
+    vec4 du = mix(c10 - c00, c11 - c01, t.y) * float(size.x);
+    vec4 dv = mix(c01 - c00, c11 - c10, t.x) * float(size.y);
+    vec2 g = ch < 0 ? vec2(luminance(du.rgb), luminance(dv.rgb)) : vec2(du[ch], dv[ch]);
+    return g * map.w;
+}
+
+bool has_map(Material m, int k) { return m.maps[k].x >= 0.0 || m.maps[k].x < -1.5; }
 
 // Base colour of material m at uv.
 vec3 material_base_color(sampler2DArray tex, Material m, vec2 uv) {
@@ -91,6 +123,7 @@ struct MaterialSample {
     float alpha;
     vec3 emission;       // radiance
     vec4 normal_map;     // xyz: tangent-space normal in [-1, 1]^3, w = strength (0 = no normal map)
+    vec3 bump;           // xy: the Bump height's UV gradient times Distance, z = Strength (0 = no bump)
 };
 
 // Every textured input of material m at uv (constants where a map is missing).
@@ -107,6 +140,9 @@ MaterialSample sample_material(sampler2DArray tex, Material m, vec2 uv) {
         vec4 map = m.maps[MAP_NORMAL];
         s.normal_map = vec4(2.0 * sample_map_rgba(tex, map, uv).rgb - 1.0, max(map.w, 0.0));
     }
+    s.bump = vec3(0.0);
+    if (has_map(m, MAP_BUMP) && m.lobes.z > 0.0)
+        s.bump = vec3(sample_map_float_grad(tex, m.maps[MAP_BUMP], uv), m.lobes.z);
     return s;
 }
 
@@ -137,6 +173,32 @@ vec3 apply_normal_map(MaterialSample s, vec3 N, vec4 T) {
         Nm = l > 0.0 ? Nm / l : N;
     }
     return Nm;
+}
+
+// Cycles' Bump node (svm_node_set_bump) with the height's screen differentials replaced by
+// its UV derivatives: for the surface differentials dx = dP/du, dy = dP/dv (world space, the
+// triangle's), h_x - h_c = dh/du and h_y - h_c = dh/dv (Distance included), Rx = dy x N,
+// Ry = N x dx, det = dx . Rx: N' = normalize(|det| N - sign(det) (dh/du Rx + dh/dv Ry)), then
+// N + (N' - N) * strength renormalised. The formula is the same for any basis of the tangent
+// plane, so it equals Cycles' with its ray differentials. N: the normal-mapped normal (a Normal
+// Map feeding the Bump node's Normal input).
+vec3 apply_bump(MaterialSample s, vec3 N, vec3 dpdu, vec3 dpdv) {
+    if (s.bump.z <= 0.0) return N;
+    vec3 Rx = cross(dpdv, N);
+    vec3 Ry = cross(N, dpdu);
+    float det = dot(dpdu, Rx);
+    if (det == 0.0) return N;
+    vec3 surfgrad = s.bump.x * Rx + s.bump.y * Ry;
+    vec3 n = abs(det) * N - sign(det) * surfgrad;
+    float l = length(n);
+    if (l <= 0.0) return N;
+    n /= l;
+    return normalize(s.bump.z * n + (1.0 - s.bump.z) * N);
+}
+
+// The shading normal of a sample: the normal map, then the bump.
+vec3 shading_normal(MaterialSample s, vec3 N, vec4 T, vec3 dpdu, vec3 dpdv) {
+    return apply_bump(s, apply_normal_map(s, N, T), dpdu, dpdv);
 }
 
 // Stochastic alpha (Cycles' transparency): a surface of alpha a is a hole for a uniform

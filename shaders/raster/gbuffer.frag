@@ -12,6 +12,7 @@
 in vec3 v_world;
 in vec3 v_normal;
 in vec4 v_tangent;
+in vec4 v_color;
 in vec2 v_uv;
 flat in int v_material;
 in vec4 v_clip;
@@ -34,13 +35,23 @@ layout(location = 5) out vec4 o_emission;
 void main() {
     int mid = (v_material >= 0 && v_material < u_material_count) ? v_material : u_material_count;
     Material m = materials[mid];
+    g_vertex_color = v_color;
     MaterialSample ms = sample_material(u_textures, m, v_uv);  // as the ray tracer samples it
     if (u_alpha_test == 1 && ms.alpha < 1.0 &&
         alpha_hash_u01(uvec3(uvec2(gl_FragCoord.xy), uint(u_alpha_seed))) >= ms.alpha) discard;
     vec3 geo = normalize(cross(dFdx(v_world), dFdy(v_world)));
     vec3 view = normalize(u_camera_pos - v_world);
     if (dot(geo, view) < 0.0) geo = -geo;
-    vec3 n = apply_normal_map(ms, normalize(v_normal), v_tangent);
+    // dP/du, dP/dv from the screen derivatives (constant over the triangle, as the ray tracer's)
+    vec3 dpdx = dFdx(v_world), dpdy = dFdy(v_world);
+    vec2 dtdx = dFdx(v_uv), dtdy = dFdy(v_uv);
+    float tdet = dtdx.x * dtdy.y - dtdx.y * dtdy.x;
+    vec3 dpdu = vec3(0.0), dpdv = vec3(0.0);
+    if (abs(tdet) > 1e-30) {
+        dpdu = (dpdx * dtdy.y - dpdy * dtdx.y) / tdet;
+        dpdv = (dpdy * dtdx.x - dpdx * dtdy.x) / tdet;
+    }
+    vec3 n = shading_normal(ms, normalize(v_normal), v_tangent, dpdu, dpdv);
     if (!gl_FrontFacing) n = -n;
     // keep the shading normal in the visible hemisphere of the geometric one
     if (dot(n, view) < 0.0) n = normalize(n - 1.01 * dot(n, view) * view);

@@ -17,6 +17,7 @@
 in vec3 v_world;
 in vec3 v_normal;
 in vec2 v_uv;
+in vec4 v_color;
 flat in int v_material;
 
 uniform sampler2DArray u_textures;
@@ -41,6 +42,7 @@ void main() {
     vec3 n = normalize(v_normal);
     if (dot(n, toL) < 0.0) n = -n;
     float NoL = clamp(dot(n, toL), 0.0, 1.0);
+    g_vertex_color = v_color;
     MaterialSample ms = sample_material(u_textures, m, v_uv);
     // alpha holes let light through (stochastic, as the shadow maps)
     if (u_alpha_test == 1 && ms.alpha < 1.0 &&

@@ -2,6 +2,7 @@
 in vec3 in_position;
 in vec3 in_normal;
 in vec2 in_uv;
+in vec4 in_color;  // the colour attribute a material reads (zero: none)
 in float in_material;
 
 uniform mat4 u_model;
@@ -11,6 +12,7 @@ uniform mat4 u_view_proj;
 out vec3 v_world;
 out vec3 v_normal;
 out vec2 v_uv;
+out vec4 v_color;
 flat out int v_material;
 
 void main() {
@@ -18,6 +20,7 @@ void main() {
     v_world = w.xyz;
     v_normal = u_normal_matrix * in_normal;
     v_uv = in_uv;
+    v_color = in_color;
     v_material = int(in_material + 0.5);
     gl_Position = u_view_proj * w;
 }

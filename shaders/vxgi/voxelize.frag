@@ -18,6 +18,7 @@ layout(std430, binding = VX_BINDING_RECORDS) buffer VoxelRecords { uint vx_rec[]
 layout(std430, binding = VX_BINDING_LIST) buffer VoxelList { uint vx_list[]; };
 
 in vec2 g_uv;
+in vec4 g_color;
 in vec3 g_normal;
 flat in int g_material;
 flat in int g_axis;
@@ -95,6 +96,7 @@ void main() {
     if (k1 < k0) discard;
     int mid = (g_material >= 0 && g_material < u_material_count) ? g_material : u_material_count;
     Material m = materials[mid];
+    g_vertex_color = g_color;
     MaterialSample ms = sample_material(u_textures, m, g_uv);
     Surface s = make_surface(material_at(m, ms), ms.base_color);
     vec3 rho = diffuse_albedo(s, 0.5);  // the Lambertian layer's albedo at 60 degrees (see the page)

@@ -14,12 +14,14 @@ layout(triangle_strip, max_vertices = 3) out;
 in vec3 v_world[];
 in vec3 v_normal[];
 in vec2 v_uv[];
+in vec4 v_color[];
 flat in int v_material[];
 
 uniform int u_cascade;
 uniform float u_thickness;  // extra voxels of dilation around each triangle
 
 out vec2 g_uv;
+out vec4 g_color;
 out vec3 g_normal;
 flat out int g_material;
 flat out int g_axis;
@@ -75,6 +77,7 @@ void main() {
         int k = idx[i];
         gl_Position = vec4(q / n * 2.0 - 1.0, 0.5, 1.0);
         g_uv = v_uv[k];
+        g_color = v_color[k];
         g_normal = v_normal[k];
         g_material = v_material[0];
         g_axis = axis;
