@@ -438,43 +438,51 @@ COAT_MAX_RELMSE = 0.01  # measured 0.0039 at 40 px, PT 256 spp vs Cycles 512 spp
 COAT_DIRECT_MAX_RELMSE = 0.06  # the raster approximation: DIRECT vs Cycles direct measured 0.027
 
 
-def test_coat_matches_cycles():
-    """Principled coat (clear, tinted over metal, half weight): PT against Cycles; the raster
-    approximation (DIRECT against Cycles direct) reported."""
+def _layer_against_cycles(layer: str, weight: str, support_word: str):
+    """The principled_layers scene with ``layer`` (coat / sheen): its three layered materials
+    (reported approximated, the detail naming ``support_word``), PT against Cycles full (relMSE,
+    mean ratio), PT with the layer's weight set to 0 (relMSE) and DIRECT against Cycles direct."""
     import scenes_real
     from gi_preview.blender.export import export_scene
     from gi_preview.blender.reference import evaluated_depsgraph, get_reference
     from gi_preview.render import session
 
-    sc = scenes_real.principled_layers_scene(None, SETUP_RES, layer="coat")
+    sc = scenes_real.principled_layers_scene(None, SETUP_RES, layer=layer)
     try:
         dg = evaluated_depsgraph(sc)
         sd = export_scene(dg)
         sup = _support(sd)
-        coated = [m for m in sd.materials if m.coat_weight > 0]
-        assert len(coated) == 3
-        for m in coated:
-            assert sup[m.name]["status"] == "approximated" and "raster" in sup[m.name]["detail"], sup[m.name]
-        e, ratio, img, r = _pt_vs_cycles(sc, dg, sd, "coat")
+        layered = [m for m in sd.materials if getattr(m, weight) > 0]
+        assert len(layered) == 3
+        for m in layered:
+            assert sup[m.name]["status"] == "approximated" and support_word in sup[m.name]["detail"], sup[m.name]
+        e, ratio, img, r = _pt_vs_cycles(sc, dg, sd, layer)
         w3 = r.shape[1] // 3
-        print("coat: ours/Cycles mean per third", [round(float(img[:, k * w3:(k + 1) * w3].mean() /
-                                                            r[:, k * w3:(k + 1) * w3].mean()), 4) for k in range(3)])
-        weights = [m.coat_weight for m in coated]
-        for m in coated:
-            m.coat_weight = 0.0
-        nocoat = _relmse(session.render(sd, "PT", 3, 8).image[..., :3].astype(np.float64), r)
-        print(f"coat: PT without the coat relMSE {nocoat:.3g}")
-        for m, w in zip(coated, weights):
-            m.coat_weight = w
+        print(f"{layer}: ours/Cycles mean per third", [round(float(img[:, k * w3:(k + 1) * w3].mean() /
+                                                                r[:, k * w3:(k + 1) * w3].mean()), 4) for k in range(3)])
+        weights = [getattr(m, weight) for m in layered]
+        for m in layered:
+            setattr(m, weight, 0.0)
+        without = _relmse(session.render(sd, "PT", 3, 8).image[..., :3].astype(np.float64), r)
+        print(f"{layer}: PT without the {layer} relMSE {without:.3g}")
+        for m, w in zip(layered, weights):
+            setattr(m, weight, w)
         ref = get_reference(sc, "direct", 256, depsgraph=dg, cache_dir=str(ART / "ref_cache"))
         d = _relmse(session.render(sd, "DIRECT", 1, 16).image[..., :3].astype(np.float64),
                     ref.image[..., :3].astype(np.float64))
-        print(f"coat: DIRECT relMSE {d:.3g} vs Cycles direct")
-        assert e <= COAT_MAX_RELMSE and abs(ratio - 1) <= 0.02
-        assert nocoat > 2 * COAT_MAX_RELMSE and nocoat > 5 * e
-        assert d <= COAT_DIRECT_MAX_RELMSE
+        print(f"{layer}: DIRECT relMSE {d:.3g} vs Cycles direct")
+        return e, ratio, without, d
     finally:
         bpy.data.scenes.remove(sc)
+
+
+def test_coat_matches_cycles():
+    """Principled coat (clear, tinted over metal, half weight): PT against Cycles; the raster
+    approximation (DIRECT against Cycles direct) reported."""
+    e, ratio, nocoat, d = _layer_against_cycles("coat", "coat_weight", "raster")
+    assert e <= COAT_MAX_RELMSE and abs(ratio - 1) <= 0.02
+    assert nocoat > 2 * COAT_MAX_RELMSE and nocoat > 5 * e
+    assert d <= COAT_DIRECT_MAX_RELMSE
 
 
 SHEEN_MAX_RELMSE = 0.006  # measured 0.0022 at 40 px, PT 256 spp vs Cycles 512 spp; without the sheen 0.022
@@ -483,40 +491,10 @@ SHEEN_MAX_RELMSE = 0.006  # measured 0.0022 at 40 px, PT 256 spp vs Cycles 512 s
 def test_sheen_against_cycles():
     """Principled sheen (Cycles' albedo and layering, an approximate lobe shape): reported
     approximated; PT against Cycles measured and bounded, far closer than without the sheen."""
-    import scenes_real
-    from gi_preview.blender.export import export_scene
-    from gi_preview.blender.reference import evaluated_depsgraph, get_reference
-    from gi_preview.render import session
-
-    sc = scenes_real.principled_layers_scene(None, SETUP_RES, layer="sheen")
-    try:
-        dg = evaluated_depsgraph(sc)
-        sd = export_scene(dg)
-        sup = _support(sd)
-        cloth = [m for m in sd.materials if m.sheen_weight > 0]
-        assert len(cloth) == 3
-        for m in cloth:
-            assert sup[m.name]["status"] == "approximated" and "sheen" in sup[m.name]["detail"], sup[m.name]
-        e, ratio, img, r = _pt_vs_cycles(sc, dg, sd, "sheen")
-        w3 = r.shape[1] // 3
-        print("sheen: ours/Cycles mean per third", [round(float(img[:, k * w3:(k + 1) * w3].mean() /
-                                                             r[:, k * w3:(k + 1) * w3].mean()), 4) for k in range(3)])
-        weights = [m.sheen_weight for m in cloth]
-        for m in cloth:
-            m.sheen_weight = 0.0
-        nosheen = _relmse(session.render(sd, "PT", 3, 8).image[..., :3].astype(np.float64), r)
-        print(f"sheen: PT without the sheen relMSE {nosheen:.3g}")
-        for m, w in zip(cloth, weights):
-            m.sheen_weight = w
-        ref = get_reference(sc, "direct", 256, depsgraph=dg, cache_dir=str(ART / "ref_cache"))
-        d = _relmse(session.render(sd, "DIRECT", 1, 16).image[..., :3].astype(np.float64),
-                    ref.image[..., :3].astype(np.float64))
-        print(f"sheen: DIRECT relMSE {d:.3g} vs Cycles direct")
-        assert d <= 0.05  # the raster approximation, measured 0.020
-        assert e <= SHEEN_MAX_RELMSE and abs(ratio - 1) <= 0.02
-        assert nosheen > 5 * e
-    finally:
-        bpy.data.scenes.remove(sc)
+    e, ratio, nosheen, d = _layer_against_cycles("sheen", "sheen_weight", "sheen")
+    assert d <= 0.05  # the raster approximation, measured 0.020
+    assert e <= SHEEN_MAX_RELMSE and abs(ratio - 1) <= 0.02
+    assert nosheen > 5 * e
 
 
 def test_setup_support_classification(scene):

@@ -1006,12 +1006,16 @@ class _Exporter:
             m = self.data.materials[i]
             msg = (f"Material '{m.name}': {', '.join(repr(x) for x in self._uv_square[i])} baked over the UV "
                    f"square [0, 1] (Extend outside it, where mesh '{mesh.name}' has UVs)")
-            if msg not in m.warnings:
-                m.warnings.append(msg)
-                m.exact = False
-                if m.support == "exact":
-                    m.support = "approximated: " + msg.split(": ", 1)[1]
-                self.warn(msg)
+            self._approximate(m, msg)
+
+    def _approximate(self, m, msg: str) -> None:
+        """Mark material ``m`` not exact for ``msg`` ("Material 'x': why"), once."""
+        if msg not in m.warnings:
+            m.warnings.append(msg)
+            m.exact = False
+            if m.support == "exact":
+                m.support = "approximated: " + msg.split(": ", 1)[1]
+            self.warn(msg)
 
     def _check_uv_names(self, mesh, lut) -> None:
         """A material whose nodes name a UV map other than the mesh's render UV map is read
@@ -1026,12 +1030,7 @@ class _Exporter:
                 m = self.data.materials[i]
                 msg = (f"Material '{m.name}': UV map '{n}' on mesh '{mesh.name}' is read as the render UV "
                        f"map '{active_name}'")
-                if msg not in m.warnings:
-                    m.warnings.append(msg)
-                    m.exact = False
-                    if m.support == "exact":
-                        m.support = "approximated: " + msg.split(": ", 1)[1]
-                    self.warn(msg)
+                self._approximate(m, msg)
 
     def add_instance(self, mesh_idx: int, matrix, object_name: str, instance_id: str = "") -> None:
         if self.data.meshes[mesh_idx].triangle_count == 0:
