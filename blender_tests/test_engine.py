@@ -407,6 +407,51 @@ def test_spot_light_uses_one_perspective_view():
         bpy.data.scenes.remove(sc)
 
 
+def test_shadow_tiles_keep_still_views(monkeypatch):
+    """A light without size keeps its shadow tiles across frames while the area light's moving
+    origins are redrawn; the image is the same as when every tile is redrawn every frame, and
+    cube faces behind the one-sided area light are never drawn."""
+    from gi_preview.blender.export import export_scene
+    from gi_preview.render.passes import shadows
+
+    sc = build_demo("cornell", resolution=32)
+    try:
+        pt = bpy.data.objects.new("point", bpy.data.lights.new("point", "POINT"))
+        pt.data.energy = 20
+        pt.data.shadow_soft_size = 0.0
+        pt.location = (0.4, -0.3, 1.2)
+        sc.collection.objects.link(pt)
+        with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
+            data = export_scene(bpy.context.evaluated_depsgraph_get())
+        point = [i for i, L in enumerate(data.lights) if L.name == "point"][0]
+        area = [i for i, L in enumerate(data.lights) if L.type.name == "AREA"]
+        assert area, "the cornell box is lit by an area light"
+
+        kept = session.render(data, "DIRECT", 1, 4)
+        sess = session._sessions["final"]
+        (_, graph), = [g for k, g in sess.graphs.items() if k[:2] == ("DIRECT", 1)]
+        sp = graph.find("shadows")
+        views = sp._last_views
+        n_point = sum(1 for v in views if v[0] == point)
+        n_area = sum(1 for v in views if v[0] in area)
+        assert n_point == 6 and n_area >= 6
+        # frame 4 drew only area-light faces, and not the ones that look behind the light
+        assert 0 < sp.tiles_drawn < n_area
+
+        execute = shadows.ShadowPass.execute
+
+        def redraw_all(self, rc, frame):
+            self._tile_views = {}
+            return execute(self, rc, frame)
+
+        monkeypatch.setattr(shadows.ShadowPass, "execute", redraw_all)
+        redrawn = session.render(data, "DIRECT", 1, 4)
+        assert np.isfinite(kept.image).all()
+        np.testing.assert_allclose(kept.image[..., :3], redrawn.image[..., :3], rtol=1e-5, atol=1e-6)
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
 def fake_gpu_modules(monkeypatch):
     """Stand-ins for Blender's ``gpu`` and ``gpu_extras.presets`` (they draw nothing headless)
     that record texture uploads and draws."""

@@ -8,7 +8,15 @@ A light with size gets ``light_samples`` shadow origins per frame (points on the
 directions in the sun's disk; the first frame's first origin is the centre), each with its
 own views; the shading side averages their visibilities weighted by each origin's geometry
 term, so unoccluded points are exact from the first frame and penumbrae converge as frames
-accumulate. Lights without size are rendered once and reused while the scene is unchanged.
+accumulate.
+
+Each atlas tile remembers the view it holds: a view that is the same as last frame's in the
+same tile (a light without size, a sun seen from a still camera) is not drawn again while the
+scene is unchanged, so only the views that move (points on lights with size, the world's
+directions) cost raster time each frame. Scenes whose materials cut holes redraw every view:
+their shadows average a different stochastic alpha pattern each frame. Cube faces of a
+one-sided area light that look only behind it are left empty (they read as unlit, which the
+light's own cosine makes exact).
 """
 from __future__ import annotations
 
@@ -81,6 +89,25 @@ CUBE_DIRS = [((1, 0, 0), (0, 0, 1)), ((-1, 0, 0), (0, 0, 1)), ((0, 1, 0), (0, 0,
              ((0, -1, 0), (0, 0, 1)), ((0, 0, 1), (0, 1, 0)), ((0, 0, -1), (0, 1, 0))]
 
 
+def _behind_area_light(scene, li, vp: np.ndarray, origin, normal) -> bool:
+    """Does this perspective view of light ``li`` (an area light, one-sided along ``normal``)
+    look only behind the light? Every direction of the view's frustum is a positive
+    combination of its four corner rays, so checking the corners decides it."""
+    if not isinstance(li, int) or li >= len(scene.lights) or scene.lights[li].type != LightType.AREA:
+        return False
+    n = np.asarray(normal, np.float64)
+    if not np.any(n):
+        return False
+    inv = np.linalg.inv(np.asarray(vp, np.float64))
+    o = np.asarray(origin, np.float64)
+    for x in (-1.0, 1.0):
+        for y in (-1.0, 1.0):
+            w = inv @ np.array([x, y, 1.0, 1.0])
+            if float(np.dot(w[:3] / w[3] - o, n)) > 0.0:
+                return False
+    return True
+
+
 def _halton(i: int, b: int) -> float:
     f, r = 1.0, 0.0
     while i > 0:
@@ -104,7 +131,7 @@ class ShadowPass(Pass):
                 Res(VIEWS, kind=BUFFER, managed=False, check="none"),
                 Res(WORLD_RANGE, kind=HOST, managed=False, check="none"),
                 Res(SHADOW_SELECTION, kind=HOST, managed=False, check="none"))
-    # re-rendered every frame; views of lights without size are reused until the scene changes
+    # a tile keeps its view while the scene is unchanged (see the module docstring)
     history_resets = frozenset({"geometry", "transforms", "lights", "param_change", "camera_cut"})
     params = (
         Param("shadow_resolution", 512, 64, 4096, "texels per side of one cube face / cascade"),
@@ -127,12 +154,16 @@ class ShadowPass(Pass):
         super().__init__(quality, **props)
         self.atlas = self.depth = self.fbo = self.view_buf = None
         self._static_key = None
+        self._tile_views = {}  # atlas tile rectangle -> the view drawn there (a bytes key)
+        self._tile_scene = None  # what the tiles were drawn for (scene version, atlas, selection)
+        self.tiles_drawn = 0  # views drawn in the last execute (the rest kept from earlier frames)
         self._mapped = set()
         self.selection = None
 
     def reset_history(self):
         super().reset_history()
         self._static_key = None
+        self._tile_views = {}
 
     # ------------------------------------------------------------------ views
     def _sample_origin(self, light_rec, scene, k: int, rng: np.random.Generator):
@@ -393,6 +424,13 @@ class ShadowPass(Pass):
             views = self._build_views(rc, frame, res)
         self._last_views = views  # for inspection (tests, debug views)
         atlas_w, atlas_h = self.atlas.size
+        from ..gpu_scene import has_alpha
+
+        tile_scene = (rc.scene.version, id(self.atlas), self.atlas.size, tuple(selection.mapped))
+        if tile_scene != self._tile_scene or has_alpha(scene):
+            self._tile_views = {}
+        self._tile_scene = tile_scene
+        self.tiles_drawn = 0
         table = np.zeros((max(1, len(views)), VIEW_FLOATS), np.float32)
         light_views = {}
         prog = rc.programs.program("raster/shadow.vert", "raster/shadow.frag")
@@ -401,7 +439,8 @@ class ShadowPass(Pass):
         self.fbo.use()
         # empty texels read as occluded: a PCF footprint reaching past the edge of a closed
         # room (zero-thickness walls) must not pick up "lit" from the void outside
-        self.fbo.clear(0.0, 0, 0, 0, depth=1.0)
+        if not self._tile_views:
+            self.fbo.clear(0.0, 0, 0, 0, depth=1.0)
         rc.ctx.enable(moderngl.DEPTH_TEST)
         rc.ctx.disable(moderngl.CULL_FACE)
         n_full = len(views) - n_world
@@ -415,12 +454,20 @@ class ShadowPass(Pass):
             else:
                 size = res
                 x0, y0 = (vi % cols) * res, (vi // cols) * res
-            rc.ctx.viewport = (x0, y0, size, size)
-            set_uniform(prog, "u_view_proj", vp.astype(np.float32))
-            set_uniform(prog, "u_origin", tuple(float(x) for x in origin))
-            set_uniform(prog, "u_dir", tuple(float(x) for x in d) if is_ortho else (0.0, 0.0, 0.0))
-            set_uniform(prog, "u_ortho", int(is_ortho))
-            rc.scene.draw(prog)
+            rect = (x0, y0, size, size)
+            view_key = np.asarray(vp, np.float64).tobytes() + np.asarray(origin, np.float64).tobytes()
+            if self._tile_views.get(rect) != view_key:
+                if self._tile_views:
+                    self.fbo.clear(0.0, 0, 0, 0, depth=1.0, viewport=rect)
+                if not (is_ortho == 0 and _behind_area_light(scene, li, vp, origin, d)):
+                    rc.ctx.viewport = rect
+                    set_uniform(prog, "u_view_proj", vp.astype(np.float32))
+                    set_uniform(prog, "u_origin", tuple(float(x) for x in origin))
+                    set_uniform(prog, "u_dir", tuple(float(x) for x in d) if is_ortho else (0.0, 0.0, 0.0))
+                    set_uniform(prog, "u_ortho", int(is_ortho))
+                    rc.scene.draw(prog)
+                    self.tiles_drawn += 1
+                self._tile_views[rect] = view_key
             table[vi, 0:16] = vp.T.astype(np.float32).ravel()  # column-major mat4
             table[vi, 16:20] = (x0 / atlas_w, y0 / atlas_h, size / atlas_w, size / atlas_h)
             table[vi, 20:23] = origin
@@ -455,6 +502,7 @@ class ShadowPass(Pass):
         self._static_key = key
 
     def release(self):
+        self._tile_views = {}
         for o in (self.fbo, self.atlas, self.depth, self.view_buf):
             if o is not None:
                 o.release()
