@@ -90,6 +90,40 @@ def test_thin_wall_leak_rtxgi_at_most_half_of_irradiance_volume():
         bpy.data.scenes.remove(sc)
 
 
+def test_relocation_keeps_an_enclosing_grid_from_leaking(monkeypatch):
+    """A grid that encloses the walls (outer probes just outside the shell, probes inside the
+    thin wall): RTXGI's relocation moves those probes out, and with the SDK's rules the light
+    leaked into the dark room is no more than with relocation off (before those rules it was
+    6x more: probes moved out of the wall into the lit room kept lighting the dark one)."""
+    import dataclasses
+
+    from gi_preview.render import techniques
+    from gi_preview.render.techniques.rtxgi import RTXGI, RTXGI_CONFIG
+
+    class NoRelocation(RTXGI):
+        id = "RTXGI_TEST_NO_RELOCATION"
+        config = dataclasses.replace(RTXGI_CONFIG, relocate=False)
+
+    monkeypatch.setitem(techniques.REGISTRY, NoRelocation.id, NoRelocation)
+    sc = scenes_probes.build("two_rooms", RES)
+    lamp_a = next(o for o in sc.objects if o.type == "LIGHT" and "lamp_a" in o.name)
+    try:
+        sd_on = _export(sc)
+        lamp_a.data.energy *= 1e-6
+        sd_off = _export(sc)
+        enclose = {"probe_trace": {"margin": 0.05}}
+        leak = {}
+        for tech in ("RTXGI", NoRelocation.id):
+            on = session.render(sd_on, tech, 1, 4, params=enclose).image[..., :3]
+            off = session.render(sd_off, tech, 1, 4, params=enclose).image[..., :3]
+            assert np.isfinite(on).all() and np.isfinite(off).all()
+            leak[tech] = float(on.mean() - off.mean())
+        print(f"two rooms, enclosing grid: light leaked into the dark room: {leak}")
+        assert leak["RTXGI"] <= leak[NoRelocation.id]
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
 def test_dynamics_light_off_and_moved():
     """DDGI and RTXGI, viewport-style frames (history kept), quality 0 at 24 px (the 60-frame
     curves at 48 px are in scripts/bench_probes.py --only dynamics). Switching the light off

@@ -368,7 +368,7 @@ class ProbeStatePass(ProbePass):
     params = (
         Param("backface_ratio", 0.25, 0.0, 1.0, "fixed rays hitting back faces above which a probe is inside geometry"),
         Param("min_frontface", 0.2, 0.0, 1.0, "closest front face a probe keeps (fraction of a cell)"),
-        Param("max_offset", 0.45, 0.0, 0.45, "largest relocation (fraction of a cell, per axis)"),
+        Param("max_offset", 0.45, 0.0, 0.45, "largest relocation (fraction of a cell: the offset stays inside that ellipsoid)"),
     )
 
     def __init__(self, volume, quality=None, **kw):

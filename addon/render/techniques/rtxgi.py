@@ -2,9 +2,12 @@
 
 DDGI's chain (ddgi.py) plus, in ``probe_state`` and the shaders of ``passes/probes.py``:
 32 fixed (unrotated) rays per probe used for relocation and classification only;
-relocation (more than ``backface_ratio`` of the fixed rays on back faces: inside geometry,
-moved past the closest back face; too close to a front face: moved away; never more than
-0.45 of a cell per axis); classification (inactive, not traced beyond the fixed rays and
+relocation (the SDK's three cases: more than ``backface_ratio`` of the fixed rays on back
+faces: inside geometry, moved past the closest back face; a front face closer than
+``min_frontface``: moved away along the farthest front-face direction; nothing near: back
+towards the lattice point; the offset stays inside the 0.45-cell ellipsoid); the SDK's
+blending rules (back-face hit distances at 0.2 x in the distance moments; a probe with 10 %
+or more back-face rays keeps its irradiance that frame); classification (inactive, not traced beyond the fixed rays and
 skipped by the lookup, when inside geometry or when no fixed ray meets a surface within the
 probe's cell); an optional camera-following volume that scrolls by whole cells
 (``probe_trace.follow_camera``); warm-up that ends when the probes' variability (mean
