@@ -359,3 +359,44 @@ def test_many_lights_culled_injection_matches_every_light():
         for key in ("culled", "every"):
             session.release_session(f"vxgi_ml_{key}")
         bpy.data.scenes.remove(sc)
+
+
+def _voxel_state(sess):
+    """(occupied voxel count, revoxelised last frame) of the VXGI graph of session ``sess``."""
+    (graph,) = [g for _t, g in session._sessions[sess].graphs.values()]
+    vox = graph.find("vxgi_voxelize")
+    count = session.get_gl().call(lambda: int(np.frombuffer(vox.list.read(size=4), np.uint32)[0]))
+    return count, vox.revoxelised
+
+
+def test_voxels_kept_while_the_scene_is_still_and_rebuilt_on_an_edit():
+    """Still frames keep the voxel records (no voxelisation); a transform edit voxelises again,
+    and the records then match a fresh session's voxelisation of the moved scene (occupied
+    voxel count), which differs from the unmoved one's; a light edit keeps the records."""
+    sc = demo_scenes.build_demo("cornell", resolution=24)
+    try:
+        sd = _export(sc)
+        for _ in range(3):
+            still = session.render(sd, "VXGI", Q, 1, keep_history=True, session="vxgi_cache")
+        before, revox = _voxel_state("vxgi_cache")
+        assert not revox, "a still frame voxelised the scene again"
+        light = [o for o in sc.objects if o.type == "LIGHT"][0]
+        light.data.energy *= 1.5
+        session.render(_export(sc), "VXGI", Q, 1, keep_history=True, session="vxgi_cache")
+        assert not _voxel_state("vxgi_cache")[1], "a light edit voxelised the scene again"
+        box = sc.objects["cornell.tall_box"]
+        box.location.x += 0.3
+        box.rotation_euler.z += 0.5
+        moved = _export(sc)
+        res = session.render(moved, "VXGI", Q, 1, keep_history=True, session="vxgi_cache")
+        after, revox = _voxel_state("vxgi_cache")
+        assert revox, "a transform edit kept the old voxels"
+        session.render(moved, "VXGI", Q, 1, session="vxgi_cache_fresh")
+        fresh, _ = _voxel_state("vxgi_cache_fresh")
+        print(f"VXGI occupied voxels: still {before}, after the move {after}, fresh {fresh}")
+        assert after == fresh and after != before
+        assert np.isfinite(res.image).all() and np.isfinite(still.image).all()
+    finally:
+        session.release_session("vxgi_cache")
+        session.release_session("vxgi_cache_fresh")
+        bpy.data.scenes.remove(sc)

@@ -294,6 +294,9 @@ class GPUScene:
         self._motion_pending = False  # prev_matrices not yet drawn by a G-buffer frame
         self._fp = {}
         self.version = 0  # bumps on any change (history invalidation)
+        # per kind of change (update()'s keys): bumps when that part changed, so a cache can
+        # depend on only what it reads (VXGI's voxels: geometry, transforms, materials, textures)
+        self.versions = {"geometry": 0, "transforms": 0, "materials": 0, "lights": 0, "textures": 0}
         self.setup_ms = 0.0  # one-time work (BVH builds, uploads) done for this scene so far, in ms
 
     # ------------------------------------------------------------------ upload
@@ -414,6 +417,8 @@ class GPUScene:
         self.scene = scene
         if any(changes.values()):
             self.version += 1
+        for k, v in changes.items():
+            self.versions[k] += int(bool(v))
         return changes
 
     def _replace(self, attr: str, array: np.ndarray):

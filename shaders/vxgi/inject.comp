@@ -2,7 +2,7 @@
 // voxelisation appended; level 0 is cleared before).
 // Reads the voxel's records (voxelize.frag: per orientation bucket, albedo, normal and plane
 // distance averaged over the bucket's triangles overlapping the voxel; each bucket is lit on
-// its own), clears them for the next frame, and writes level 0
+// its own; they stay until the scene is voxelised again) and writes level 0
 // of the six directional radiance volumes (vxgi/common.glsl): the outgoing radiance of the
 // surface side facing each direction, L = rho/pi * E, with E in Cycles' units:
 //  * direct light of every light (lib/lights.glsl light_irradiance: point/spot I cos/d^2 with
@@ -14,8 +14,7 @@
 //    (history; its own cascade origins): last frame's indirect irradiance, plus the world's
 //    radiance for the part of each cone that escapes (sky light). After a history reset the
 //    pass runs this shader several times within the frame (passes/vxgi.py, reset_bounces),
-//    each gathering from the volume the previous run wrote (u_keep_records = 1 on all but
-//    the last run, which clears the records for the next frame).
+//    each gathering from the volume the previous run wrote.
 // Emission is not voxelised: every emissive instance is a mesh light (gpu_scene.EmitterSet)
 // lighting the voxels like the other lights, and DIRECT draws emitters seen directly.
 // Many lights (u_cull = 1; passes/vxgi.py, light_cull): each voxel loops exactly over the
@@ -54,7 +53,6 @@ uniform vec4 u_cur_origin[VX_MAX_CASCADES];  // this frame's grid (u_vx_origin: 
 uniform int u_rsm_light[RSM_MAX_VIEWS];      // light index of each RSM view
 uniform int u_bounce;                        // multi-bounce: gather last frame's volume
 uniform int u_gather;                        // gather at all (multi-bounce or a lit world)
-uniform int u_keep_records;                  // 1: an in-frame bounce iteration; the records stay for the next one
 uniform float u_shadow_offset;               // voxels: shadow lookups start this far off the surface
 uniform float u_normal_offset;               // voxels: cones start this far off the surface
 uniform float u_step;
@@ -193,7 +191,6 @@ void main() {
     ivec3 v = ivec3(gid.xy, gid.z - c * N);
     uint vbase = flat_index * uint(VX_REC);
     uint mask = vx_rec[vbase];
-    if (u_keep_records == 0) vx_rec[vbase] = 0u;  // ready for the next frame
     if (mask == 0u) return;
     vec4 o = u_cur_origin[c];
     float vs = o.w;
@@ -219,8 +216,6 @@ void main() {
         vec3 nsum = vec3(uintBitsToFloat(vx_rec[base + 4u]), uintBitsToFloat(vx_rec[base + 5u]),
                          uintBitsToFloat(vx_rec[base + 6u]));
         float dist = uintBitsToFloat(vx_rec[base + 7u]) * inv;
-        if (u_keep_records == 0)
-            for (uint k = 0u; k < uint(VX_BUCKET); ++k) vx_rec[base + k] = 0u;
         float nl = length(nsum);
         vec3 n = nl > 1e-3 * float(count) ? nsum / nl : FACE_DIR[b];
         vec3 p = centre - n * (dist * vs);  // the bucket's surface point nearest the centre

@@ -1,6 +1,6 @@
 """Voxel cone tracing (Crassin, Neyret, Sainz, Green, Eisemann 2011), the passes of VXGI.
 
-* ``VoxelizePass`` (raster): the whole scene, every frame, into ``cascades`` grids of
+* ``VoxelizePass`` (raster): the whole scene into ``cascades`` grids of
   ``resolution``³ voxels centred on the camera. Each cascade's voxels are twice the size
   of the previous one's; the coarsest covers the scene's bounds, the finer ones are
   centred on the camera and clamped into the scene's box; corners are snapped to 4 voxels
@@ -190,10 +190,14 @@ class VoxelizePass(Pass):
         self.buf = self.list = None
         self.fbo = None
         self.grid = VoxelGrid()
+        self._key = None  # what the records hold (scene versions, cascades, thickness)
+        self.revoxelised = False  # the last frame voxelised the scene (False: kept the records)
 
-    def _ensure(self, rc, n: int, cascades: int):
+    def _ensure(self, rc, n: int, cascades: int) -> bool:
+        """Buffers for n^3 x cascades voxels; True when they were (re)allocated (zero records)."""
         size = n * n * n * cascades * VX_REC * 4
-        if self.buf is None or self.buf.size != size:
+        fresh = self.buf is None or self.buf.size != size
+        if fresh:
             for o in (self.buf, self.list):
                 if o is not None:
                     o.release()
@@ -204,38 +208,60 @@ class VoxelizePass(Pass):
             if self.fbo is not None:
                 self.fbo.release()
             self.fbo = rc.empty_framebuffer((n, n))
+        return fresh
 
     def execute(self, rc, frame):
         import moderngl
 
         n, C = int(self["resolution"]), int(self["cascades"])
-        self._ensure(rc, n, C)
-        self.grid = VoxelGrid(voxel_cascades(rc.scene.scene, frame, n, C, float(self["voxel_size"]), snap=SNAP), n,
-                              int(math.log2(SNAP)) + 1 if self["aligned_mips"] else 0)
+        fresh = self._ensure(rc, n, C)
+        grid = VoxelGrid(voxel_cascades(rc.scene.scene, frame, n, C, float(self["voxel_size"]), snap=SNAP), n,
+                         int(math.log2(SNAP)) + 1 if self["aligned_mips"] else 0)
+        gs = rc.scene
+        v = gs.versions
+        key = (id(gs), v["geometry"], v["transforms"], v["materials"], v["textures"], grid.array().tobytes(),
+               grid.moving_levels, float(self["thickness"]))
         rc.resources[VOXELS] = self.buf
-        rc.resources[GRID] = self.grid
-        prog = rc.programs.program("vxgi/voxelize.vert", "vxgi/voxelize.frag", geometry="vxgi/voxelize.geom")
-        rc.scene.bind(prog)
-        self.grid.uniforms(prog)
-        set_uniform(prog, "u_thickness", float(self["thickness"]))
-        # the list of occupied voxels starts empty (after last frame's shader reads of it)
-        rc.ctx.memory_barrier(BUFFER_UPDATE_BARRIER_BIT)
-        self.list.write(np.zeros(1, np.uint32).tobytes())
+        if not fresh and key == self._key:
+            # nothing the voxels hold changed (surfaces, their albedo, the cascades' placement):
+            # the records and the list of occupied voxels stay as they are
+            self.revoxelised = False
+            rc.resources[GRID] = self.grid
+            return
+        self.grid = grid
+        rc.resources[GRID] = grid
         self.buf.bind_to_storage_buffer(BINDING_RECORDS)
         self.list.bind_to_storage_buffer(BINDING_LIST)
+        if not fresh:  # zero the records the last voxelisation wrote (a new buffer is zero)
+            clear = rc.programs.compute("vxgi/clear.comp")
+            rc.dispatch(clear, (n * n * n * C + 255) // 256)
+        # the list of occupied voxels starts empty (after the clear's and the shaders' reads of it)
+        rc.ctx.memory_barrier(BUFFER_UPDATE_BARRIER_BIT | SHADER_STORAGE_BARRIER_BIT)
+        self.list.write(np.zeros(1, np.uint32).tobytes())
+        prog = rc.programs.program("vxgi/voxelize.vert", "vxgi/voxelize.frag", geometry="vxgi/voxelize.geom")
+        gs.bind(prog)
+        grid.uniforms(prog)
+        set_uniform(prog, "u_thickness", float(self["thickness"]))
         ctx = rc.ctx
         self.fbo.use()
         ctx.viewport = (0, 0, n, n)
         ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE | moderngl.BLEND)
         for c in range(C):
             set_uniform(prog, "u_cascade", c)
-            rc.scene.draw(prog)
+            gs.draw(prog)
+        self._key = key
+        self.revoxelised = True
+
+    def reset_history(self):
+        super().reset_history()
+        self._key = None  # a parameter change or a camera cut voxelises again
 
     def release(self):
         for o in (self.buf, self.list, self.fbo):
             if o is not None:
                 o.release()
         self.buf = self.list = self.fbo = None
+        self._key = None
 
 
 def radiance_decl(n: int, cascades: int) -> Res:
@@ -447,7 +473,6 @@ class VoxelInjectPass(Pass):
         self.direct_buf.bind_to_storage_buffer(BINDING_DIRECT)
         set_uniform(prog, "u_direct_capacity", int(cap))
         for k in range(runs):
-            last = k == runs - 1
             dst = cur if (runs - 1 - k) % 2 == 0 else other
             src = other if dst is cur else cur
             if prev is not None:  # a normal frame: last frame's volume on its own grid
@@ -461,7 +486,6 @@ class VoxelInjectPass(Pass):
             set_uniform(prog, "u_gather", 1 if (gathers and gather) else 0)
             md = float(self["max_distance"])
             set_uniform(prog, "u_max_distance", md if md > 0 else float((prev or grid).extent()))
-            set_uniform(prog, "u_keep_records", 0 if last else 1)
             set_uniform(prog, "u_direct_mode", 0 if runs == 1 else (1 if k == 0 else 2))
             if k > 0:  # the previous run's level 0 (image stores) -> its mips -> this run's sampler;
                 # its record and direct-light stores -> this run's reads

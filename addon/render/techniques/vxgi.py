@@ -1,8 +1,8 @@
 """VXGI: voxel cone tracing (Crassin et al. 2011), indirect diffuse, glossy and AO added to DIRECT.
 
 Passes: DIRECT's (gbuffer, light_cull, shadows, direct_light) → ``rsm`` (passes/rsm.py: the
-suns' shadow maps over the whole scene) → ``vxgi_voxelize`` (conservative, every frame,
-cascades centred on the camera) → ``vxgi_inject`` (direct light from the shadow maps,
+suns' shadow maps over the whole scene) → ``vxgi_voxelize`` (conservative, cascades centred on
+the camera; the records are kept while the surfaces and the cascades stay put) → ``vxgi_inject`` (direct light from the shadow maps,
 optional multi-bounce from last frame's volume; anisotropic mips) → ``vxgi_trace`` (6
 diffuse cones + 1 specular cone per pixel, composited into the colour) → ``vxgi_debug``
 (GI_VXGI_Voxels). Compared with Cycles "full" (multi-bounce on). See passes/vxgi.py and
@@ -64,7 +64,7 @@ def vxgi_passes(quality) -> list:
 class VXGI(Technique):
     id = "VXGI"
     label = "VXGI"
-    description = ("Voxel cone tracing: the scene voxelised every frame, lit from the shadow maps, "
+    description = ("Voxel cone tracing: the scene voxelised (again only when it moves), lit from the shadow maps, "
                    "6 diffuse + 1 specular cone per pixel, added to DIRECT")
     family = "raster3d"
     reference = "full"
