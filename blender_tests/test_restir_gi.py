@@ -173,6 +173,52 @@ def test_nan_in_history_gone_within_one_frame():
         bpy.data.scenes.remove(sc)
 
 
+def _inject_bright_sample(sess, scale: float = 1e4):
+    """Multiplies the radiance of the history reservoir at the image centre by ``scale`` (a
+    valid sample, so reuse takes it): a rare, very bright sample, the seed of boiling."""
+    def go():
+        s = session._sessions[sess]
+        s.ctx.memory_barrier()
+        for n in ("restir_gi.rad", "restir_gi.rad@prev"):
+            t = s.rc.resources[n]
+            w, h = t.size
+            a = np.frombuffer(t.read(), np.float32).reshape(h, w, 4).copy()
+            ys, xs = np.nonzero(a[..., 3] > 0.5)
+            k = int(np.argmin((ys - h / 2) ** 2 + (xs - w / 2) ** 2))
+            a[ys[k], xs[k], :3] *= scale
+            t.write(a.tobytes())
+        s.ctx.finish()
+    get_gl().call(go)
+
+
+def test_boiling_filter_drops_a_rare_bright_sample():
+    """A reservoir made 10^4x brighter than its neighbours (valid, so temporal and spatial reuse
+    take it) is dropped by the boiling filter in the next frame: the indirect light stays
+    within 20x its level before. With the filter off the same sample spreads over its
+    neighbours (the check is able to fail)."""
+    sc, sd = build("cornell", 24)
+    peaks = {}
+    try:
+        for strength in (0.2, 0.0):
+            sess = f"rg_boil_{strength}"
+            try:
+                frames(sd, "RESTIR_GI", 1, sess, denoiser="NONE")
+                set_props(sess, {"boiling_filter": strength})
+                before = frames(sd, "RESTIR_GI", 4, sess, denoiser="NONE")[-1].aovs["GI_IndirectDiffuse"]
+                _inject_bright_sample(sess)
+                after = frames(sd, "RESTIR_GI", 1, sess, denoiser="NONE")[-1].aovs["GI_IndirectDiffuse"]
+                assert np.isfinite(after).all()
+                peaks[strength] = float(after.max()) / max(float(before.max()), 1e-9)
+            finally:
+                release(sess)
+    finally:
+        bpy.data.scenes.remove(sc)
+    print(f"\nbright sample injected: indirect peak / before {peaks[0.2]:.1f}x with the filter, "
+          f"{peaks[0.0]:.1f}x without")
+    assert peaks[0.2] < 20.0, peaks
+    assert peaks[0.0] > 100.0, peaks
+
+
 def test_200_frame_animation_finite_and_bounded():
     sc, sd = build("cornell", 16)
     sess = "rg_anim"

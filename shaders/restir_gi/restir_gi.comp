@@ -36,6 +36,12 @@
 // (1, as RTXDI does) or the temporal ones (0, as in the ReSTIR GI paper).
 // STAGE 2: shading: color += f * L_o * W split into the diffuse and glossy lobes of x_v
 //   (GI_IndirectDiffuse / GI_IndirectGlossy), debug views W and M.
+// Sample age (RTXDI): frames since the sample was traced, carried by temporal and spatial
+// reuse; a history reservoir older than u_max_age is not reused (its L_o is stale once the
+// scene changed, and an old sample would otherwise keep winning). Boiling filter (RTXDI,
+// u_boiling > 0): after temporal reuse, a reservoir whose contribution p^ W is above
+// (10 / u_boiling - 9) times the mean nonzero contribution of its 8x8 tile is dropped, so a
+// rare very bright sample does not spread through spatial and temporal reuse as a blotch.
 // Every history texel is checked for finiteness before use: NaN in history is dropped.
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
@@ -62,7 +68,7 @@ uniform sampler2D u_gb_motion;
 // reservoirs read: STAGE 0 last frame's final (+ vpos/vnrm), STAGE 1 tmp, STAGE 2 final
 uniform sampler2D u_in_pos;   // x_s, w = M
 uniform sampler2D u_in_nrm;   // n_s, w = W
-uniform sampler2D u_in_rad;   // L_o, w = 1 holds a sample, 0 none
+uniform sampler2D u_in_rad;   // L_o, w = 1 + the sample's age holds a sample, 0 none
 uniform sampler2D u_in_vpos;  // visible point the reservoir was made for, w = -1: none
 uniform sampler2D u_in_vnrm;  // its shading normal
 uniform int u_stage;
@@ -78,6 +84,11 @@ uniform int u_rr_start;
 uniform uint u_sample;
 uniform uint u_seed;
 uniform vec3 u_camera_pos;
+uniform float u_max_age;  // history reservoirs older than this are not reused (0: no cap)
+uniform float u_boiling;  // boiling filter strength in (0, 1]; 0 = off
+
+shared float s_contrib[64];
+shared float s_nonzero[64];
 
 struct Shading { Surface s; vec3 P; vec3 N; vec3 Ng; vec3 V; vec3 p; bool valid; };
 
@@ -99,11 +110,11 @@ Shading load(ivec2 q) {
     return sh;
 }
 
-struct Reservoir { vec3 xs; vec3 ns; vec3 Lo; float W; float M; bool ok; };
+struct Reservoir { vec3 xs; vec3 ns; vec3 Lo; float W; float M; float age; bool ok; };
 
 Reservoir empty_reservoir() {
     Reservoir r;
-    r.xs = vec3(0.0); r.ns = vec3(0.0, 0.0, 1.0); r.Lo = vec3(0.0); r.W = 0.0; r.M = 0.0; r.ok = false;
+    r.xs = vec3(0.0); r.ns = vec3(0.0, 0.0, 1.0); r.Lo = vec3(0.0); r.W = 0.0; r.M = 0.0; r.age = 0.0; r.ok = false;
     return r;
 }
 
@@ -116,14 +127,14 @@ Reservoir fetch_reservoir(ivec2 q) {
     r.M = max(a.w, 0.0);
     bool ok = c.w > 0.5 && b.w > 0.0 && max3(c.rgb) > 0.0 && dot(b.xyz, b.xyz) > 0.25;
     if (!ok) return r;
-    r.xs = a.xyz; r.ns = normalize(b.xyz); r.Lo = max(c.rgb, vec3(0.0)); r.W = b.w; r.ok = true;
+    r.xs = a.xyz; r.ns = normalize(b.xyz); r.Lo = max(c.rgb, vec3(0.0)); r.W = b.w; r.age = c.w - 1.0; r.ok = true;
     return r;
 }
 
 void store_reservoir(ivec2 px, Reservoir r) {
     imageStore(o_0, px, vec4(r.xs, r.M));
     imageStore(o_1, px, vec4(r.ns, r.ok ? r.W : 0.0));
-    imageStore(o_2, px, vec4(r.Lo, r.ok ? 1.0 : 0.0));
+    imageStore(o_2, px, vec4(r.Lo, r.ok ? 1.0 + r.age : 0.0));
 }
 
 // target function without visibility: luminance of the contribution f cos L_o at sh
@@ -205,9 +216,151 @@ vec3 radiance_out(SurfaceHit h, vec3 d, inout Rng rng) {
     return sanitize(L);
 }
 
+// the fresh sample and temporal reuse at a valid pixel; ph_sel = p^ of the chosen sample here
+Reservoir temporal_reservoir(ivec2 px, ivec2 size, Shading sh, inout Rng rng, out float ph_sel) {
+    // ---- the fresh sample: one BSDF-sampled direction, its hit and L_o there
+    Reservoir r = empty_reservoir();
+    r.M = 1.0;
+    float wsum = 0.0;
+    ph_sel = 0.0;
+    vec4 ub = rng_next4(rng);
+    float pdf;
+    vec3 wi = sample_principled(sh.s, sh.N, sh.V, ub.xyz, pdf);
+    if (pdf > 0.0 && dot(wi, sh.Ng) > 0.0 && u_light_count + int(max3(u_world_color) > 0.0) > 0) {
+        SurfaceHit h;
+        if (scene_trace(sh.p, wi, 0.0, T_INF, h)) {
+            Reservoir y = empty_reservoir();
+            y.xs = h.position;
+            y.ns = dot(h.geo_normal, wi) > 0.0 ? -h.geo_normal : h.geo_normal;
+            y.Lo = radiance_out(h, wi, rng);
+            y.ok = max3(y.Lo) > 0.0;
+            float ph = phat_unshadowed(sh, y);  // visible by construction
+            if (ph > 0.0) {
+                y.W = 1.0 / pdf;  // = (ph / pdf) / (M ph) with M = 1
+                y.M = 1.0;
+                r = y;
+                wsum = ph / pdf;
+                ph_sel = ph;
+            }
+        }
+    }
+    // ---- temporal reuse
+    if (u_temporal == 1 && u_reset == 0) {
+        // the previous pixel: the one holding the reprojected point, else the nearest other
+        // pixel of its 2x2 bilinear footprint on the same surface (plane and normal tests).
+        // Only the nearest one, an edge pixel under motion lands on the neighbouring face
+        // every frame and restarts from one sample (flicker along every depth edge).
+        vec2 prev = vec2(px) + 0.5 - texelFetch(u_gb_motion, px, 0).xy;
+        ivec2 q0 = ivec2(floor(prev));
+        vec2 fr = prev - vec2(q0) - 0.5;  // offset from that pixel's centre, (-0.5, 0.5]
+        ivec2 sx = ivec2(fr.x >= 0.0 ? 1 : -1, 0), sy = ivec2(0, fr.y >= 0.0 ? 1 : -1);
+        ivec2 cand[4] = ivec2[4](q0, abs(fr.x) >= abs(fr.y) ? q0 + sx : q0 + sy,
+                                 abs(fr.x) >= abs(fr.y) ? q0 + sy : q0 + sx, q0 + sx + sy);
+        float plane_tol = 0.02 * (1.0 + length(sh.P - u_camera_pos));
+        ivec2 q = ivec2(-1);
+        vec4 vp = vec4(0.0, 0.0, 0.0, -1.0), vn = vec4(0.0);
+        for (int c = 0; c < 4; ++c) {
+            ivec2 qc = cand[c];
+            if (any(lessThan(qc, ivec2(0))) || any(greaterThanEqual(qc, size))) continue;
+            vec4 a = texelFetch(u_in_vpos, qc, 0), b = texelFetch(u_in_vnrm, qc, 0);
+            if (finite4(a) && finite4(b) && a.w >= 0.0 && dot(b.xyz, b.xyz) > 0.25
+                && abs(dot(sh.N, a.xyz - sh.P)) < plane_tol && dot(normalize(b.xyz), sh.N) > 0.9) {
+                q = qc; vp = a; vn = b;
+                break;
+            }
+        }
+        {
+            bool ok = q.x >= 0;
+            if (ok) {
+                Reservoir pr = fetch_reservoir(q);
+                if (u_max_age > 0.0 && pr.ok && pr.age >= u_max_age) pr = empty_reservoir();  // too old
+                float Mp = min(pr.M, u_m_cap);
+                bool picked_prev = false;
+                if (pr.ok && Mp > 0.0) {
+                    float J = jacobian(pr, vp.xyz, sh.P);
+                    float ph = J > 0.0 ? phat(sh, pr) : 0.0;  // validation ray
+                    float w = ph * pr.W * Mp * J;
+                    if (w > 0.0 && !isinf(w)) {
+                        wsum += w;
+                        if (rng_next4(rng).x * wsum < w) { r.xs = pr.xs; r.ns = pr.ns; r.Lo = pr.Lo; r.ok = true;
+                                                          r.age = pr.age + 1.0; ph_sel = ph; picked_prev = true; }
+                    }
+                }
+                float W = (r.ok && ph_sel > 0.0) ? wsum / ((1.0 + Mp) * ph_sel) : 0.0;  // 1/M
+                if (u_bias_mode == 1 && W > 0.0) {
+                    // balance heuristic over the two domains (Bitterli 2020, Alg. 6): this
+                    // frame's (M = 1, target p^_r) and last frame's (M = Mp, its target at
+                    // its visible point, in this pixel's solid angle: / J, with visibility
+                    // from there)
+                    Shading ps = sh;
+                    ps.P = vp.xyz; ps.N = normalize(vn.xyz); ps.Ng = ps.N;
+                    ps.V = normalize(u_camera_pos - vp.xyz);
+                    ps.p = rt_offset_ray(vp.xyz, ps.N);
+                    float Jq = jacobian(r, vp.xyz, sh.P);
+                    float pq = Jq > 0.0 ? (picked_prev ? phat_unshadowed(ps, r) : phat(ps, r)) / Jq : 0.0;
+                    float pi = picked_prev ? pq : ph_sel;
+                    float den = ph_sel + Mp * pq;
+                    W = den > 0.0 ? wsum * pi / (ph_sel * den) : 0.0;
+                }
+                r.M = 1.0 + Mp;
+                r.W = W;
+            }
+        }
+    }
+    if (isnan(r.W) || isinf(r.W) || r.W <= 0.0) { r.ok = false; r.W = 0.0; }
+    return r;
+}
+
+// STAGE 0: the fresh sample, temporal reuse, the boiling filter. Invocations outside the
+// image or on the background take part in the tile's reduction with nothing.
+void stage_temporal(ivec2 px, ivec2 size) {
+    bool inside = all(lessThan(px, size));
+    Rng rng = rng_init(uvec2(px), u_sample * 3u, u_seed);
+    Shading sh;
+    sh.valid = false;
+    if (inside) sh = load(px);
+    Reservoir r = empty_reservoir();
+    float ph_sel = 0.0;
+    if (sh.valid) r = temporal_reservoir(px, size, sh, rng, ph_sel);
+    if (u_boiling > 0.0) {
+        uint li = gl_LocalInvocationIndex;
+        float w = r.ok ? ph_sel * r.W : 0.0;
+        s_contrib[li] = w;
+        s_nonzero[li] = w > 0.0 ? 1.0 : 0.0;
+        barrier();
+        for (uint k = 32u; k > 0u; k >>= 1u) {
+            if (li < k) {
+                s_contrib[li] += s_contrib[li + k];
+                s_nonzero[li] += s_nonzero[li + k];
+            }
+            barrier();
+        }
+        float mean = s_nonzero[0] > 0.0 ? s_contrib[0] / s_nonzero[0] : 0.0;
+        if (w > (10.0 / clamp(u_boiling, 1e-6, 1.0) - 9.0) * mean) {
+            float M = r.M;
+            r = empty_reservoir();
+            r.M = M;
+        }
+    }
+    if (!inside) return;
+    if (!sh.valid) {
+        store_reservoir(px, empty_reservoir());
+        imageStore(o_3, px, vec4(0.0, 0.0, 0.0, -1.0));
+        imageStore(o_4, px, vec4(0.0));
+        return;
+    }
+    store_reservoir(px, r);
+    imageStore(o_3, px, vec4(sh.P, 0.0));
+    imageStore(o_4, px, vec4(sh.N, 0.0));
+}
+
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
     ivec2 size = imageSize(o_0);
+    if (u_stage == 0) {  // every invocation of the tile reaches the boiling filter's barriers
+        stage_temporal(px, size);
+        return;
+    }
     if (any(greaterThanEqual(px, size))) return;
     Rng rng = rng_init(uvec2(px), u_sample * 3u + uint(u_stage), u_seed);
     Shading sh = load(px);
@@ -234,100 +387,6 @@ void main() {
         store_reservoir(px, empty_reservoir());
         imageStore(o_3, px, vec4(0.0, 0.0, 0.0, -1.0));
         imageStore(o_4, px, vec4(0.0));
-        return;
-    }
-    if (u_stage == 0) {
-        // ---- the fresh sample: one BSDF-sampled direction, its hit and L_o there
-        Reservoir r = empty_reservoir();
-        r.M = 1.0;
-        float wsum = 0.0, ph_sel = 0.0;
-        vec4 ub = rng_next4(rng);
-        float pdf;
-        vec3 wi = sample_principled(sh.s, sh.N, sh.V, ub.xyz, pdf);
-        if (pdf > 0.0 && dot(wi, sh.Ng) > 0.0 && u_light_count + int(max3(u_world_color) > 0.0) > 0) {
-            SurfaceHit h;
-            if (scene_trace(sh.p, wi, 0.0, T_INF, h)) {
-                Reservoir y = empty_reservoir();
-                y.xs = h.position;
-                y.ns = dot(h.geo_normal, wi) > 0.0 ? -h.geo_normal : h.geo_normal;
-                y.Lo = radiance_out(h, wi, rng);
-                y.ok = max3(y.Lo) > 0.0;
-                float ph = phat_unshadowed(sh, y);  // visible by construction
-                if (ph > 0.0) {
-                    y.W = 1.0 / pdf;  // = (ph / pdf) / (M ph) with M = 1
-                    y.M = 1.0;
-                    r = y;
-                    wsum = ph / pdf;
-                    ph_sel = ph;
-                }
-            }
-        }
-        // ---- temporal reuse
-        if (u_temporal == 1 && u_reset == 0) {
-            // the previous pixel: the one holding the reprojected point, else the nearest other
-            // pixel of its 2x2 bilinear footprint on the same surface (plane and normal tests).
-            // Only the nearest one, an edge pixel under motion lands on the neighbouring face
-            // every frame and restarts from one sample (flicker along every depth edge).
-            vec2 prev = vec2(px) + 0.5 - texelFetch(u_gb_motion, px, 0).xy;
-            ivec2 q0 = ivec2(floor(prev));
-            vec2 fr = prev - vec2(q0) - 0.5;  // offset from that pixel's centre, (-0.5, 0.5]
-            ivec2 sx = ivec2(fr.x >= 0.0 ? 1 : -1, 0), sy = ivec2(0, fr.y >= 0.0 ? 1 : -1);
-            ivec2 cand[4] = ivec2[4](q0, abs(fr.x) >= abs(fr.y) ? q0 + sx : q0 + sy,
-                                     abs(fr.x) >= abs(fr.y) ? q0 + sy : q0 + sx, q0 + sx + sy);
-            float plane_tol = 0.02 * (1.0 + length(sh.P - u_camera_pos));
-            ivec2 q = ivec2(-1);
-            vec4 vp = vec4(0.0, 0.0, 0.0, -1.0), vn = vec4(0.0);
-            for (int c = 0; c < 4; ++c) {
-                ivec2 qc = cand[c];
-                if (any(lessThan(qc, ivec2(0))) || any(greaterThanEqual(qc, size))) continue;
-                vec4 a = texelFetch(u_in_vpos, qc, 0), b = texelFetch(u_in_vnrm, qc, 0);
-                if (finite4(a) && finite4(b) && a.w >= 0.0 && dot(b.xyz, b.xyz) > 0.25
-                    && abs(dot(sh.N, a.xyz - sh.P)) < plane_tol && dot(normalize(b.xyz), sh.N) > 0.9) {
-                    q = qc; vp = a; vn = b;
-                    break;
-                }
-            }
-            {
-                bool ok = q.x >= 0;
-                if (ok) {
-                    Reservoir pr = fetch_reservoir(q);
-                    float Mp = min(pr.M, u_m_cap);
-                    bool picked_prev = false;
-                    if (pr.ok && Mp > 0.0) {
-                        float J = jacobian(pr, vp.xyz, sh.P);
-                        float ph = J > 0.0 ? phat(sh, pr) : 0.0;  // validation ray
-                        float w = ph * pr.W * Mp * J;
-                        if (w > 0.0 && !isinf(w)) {
-                            wsum += w;
-                            if (rng_next4(rng).x * wsum < w) { r.xs = pr.xs; r.ns = pr.ns; r.Lo = pr.Lo; r.ok = true;
-                                                              ph_sel = ph; picked_prev = true; }
-                        }
-                    }
-                    float W = (r.ok && ph_sel > 0.0) ? wsum / ((1.0 + Mp) * ph_sel) : 0.0;  // 1/M
-                    if (u_bias_mode == 1 && W > 0.0) {
-                        // balance heuristic over the two domains (Bitterli 2020, Alg. 6): this
-                        // frame's (M = 1, target p^_r) and last frame's (M = Mp, its target at
-                        // its visible point, in this pixel's solid angle: / J, with visibility
-                        // from there)
-                        Shading ps = sh;
-                        ps.P = vp.xyz; ps.N = normalize(vn.xyz); ps.Ng = ps.N;
-                        ps.V = normalize(u_camera_pos - vp.xyz);
-                        ps.p = rt_offset_ray(vp.xyz, ps.N);
-                        float Jq = jacobian(r, vp.xyz, sh.P);
-                        float pq = Jq > 0.0 ? (picked_prev ? phat_unshadowed(ps, r) : phat(ps, r)) / Jq : 0.0;
-                        float pi = picked_prev ? pq : ph_sel;
-                        float den = ph_sel + Mp * pq;
-                        W = den > 0.0 ? wsum * pi / (ph_sel * den) : 0.0;
-                    }
-                    r.M = 1.0 + Mp;
-                    r.W = W;
-                }
-            }
-        }
-        if (isnan(r.W) || isinf(r.W) || r.W <= 0.0) { r.ok = false; r.W = 0.0; }
-        store_reservoir(px, r);
-        imageStore(o_3, px, vec4(sh.P, 0.0));
-        imageStore(o_4, px, vec4(sh.N, 0.0));
         return;
     }
     // ---- STAGE 1: spatial reuse of this frame's tmp reservoirs

@@ -9,7 +9,9 @@ function, the Jacobian and the stages).
   path continuation with Russian roulette, ``max_bounces`` as Cycles counts them; the
   emission of x_s and the world seen by that first ray are left to DIRECT); temporal reuse of
   last frame's final reservoir (reprojection through ``gbuffer.motion``, plane/normal tests,
-  validation ray, reconnection Jacobian, M capped at ``m_cap``);
+  validation ray, reconnection Jacobian, M capped at ``m_cap``; a history sample older than
+  ``max_age`` frames is not reused), then the boiling filter (``boiling_filter``: a reservoir
+  far brighter than its 8x8 tile's mean is dropped);
 * stage 1: spatial reuse over ``spatial`` neighbours in ``radius`` pixels (depth/normal
   tests, validation rays, Jacobian), bias correction ``bias_mode`` (0 = 1/M, 1 = the balance
   heuristic over the domains, Bitterli 2020 Alg. 6, with ray-traced visibility from each);
@@ -70,6 +72,8 @@ class RestirGIPass(Pass):
         Param("max_bounces", 12, 1, 64, "Cycles' Max Bounces (total) of the secondary path"),
         Param("rr_start", 3, 1, 64, "Russian roulette after this many bounces"),
         Param("feedback", 1, 0, 1, "next frame's history: 1 = the spatial reservoirs (RTXDI), 0 = the temporal ones (the paper)"),
+        Param("max_age", 30.0, 0.0, 1000.0, "a history reservoir whose sample was traced more than this many frames ago is not reused (0 = no cap)"),
+        Param("boiling_filter", 0.2, 0.0, 1.0, "boiling filter strength: after temporal reuse, reservoirs brighter than (10 / strength - 9) x their 8x8 tile's mean are dropped (0 = off)"),
     )
     quality_ladder = ({"spatial": 2, "radius": 8.0, "max_bounces": 3}, {"spatial": 4, "radius": 12.0},
                       {"spatial": 6, "radius": 16.0}, {"spatial": 8, "radius": 24.0, "m_cap": 30.0})
@@ -82,8 +86,9 @@ class RestirGIPass(Pass):
         bind_reuse_frame(prog, frame, self.history_valid)
         for k in ("temporal", "spatial", "bias_mode", "max_bounces", "rr_start"):
             set_uniform(prog, "u_" + k, int(self[k]))
-        for k in ("radius", "m_cap", "jacobian_max"):
+        for k in ("radius", "m_cap", "jacobian_max", "max_age"):
             set_uniform(prog, "u_" + k, float(self[k]))
+        set_uniform(prog, "u_boiling", float(self["boiling_filter"]))
         unit = 1
         for uni, name in _TEX:
             res[name].use(unit)
