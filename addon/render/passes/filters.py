@@ -29,8 +29,6 @@ and ``scene.gi_preview.use_taa``.
 """
 from __future__ import annotations
 
-from dataclasses import replace
-
 from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, EMISSION, GEONORMAL, MOTION, NORMAL, POSITION, GBufferPass
@@ -225,16 +223,13 @@ class TAAPass(_FilterPass):
     (see shaders/filters/taa.comp)."""
 
     name = "taa"
-    reads = (COLOR, MOTION, POSITION, NORMAL, "taa.history@prev", "taa.aux@prev", "taa.pos@prev",
-             "taa.alt@prev", "taa.altn@prev")
-    writes = (COLOR, "taa.history", "taa.aux", "taa.pos", "taa.debug", "taa.alt", "taa.altn")
+    reads = (COLOR, MOTION, POSITION, NORMAL, "taa.history@prev", "taa.aux@prev", "taa.pos@prev")
+    writes = (COLOR, "taa.history", "taa.aux", "taa.pos", "taa.debug")
     declared = (Res(COLOR, check="radiance"),
                 Res("taa.history", history=True, check="radiance"),
                 Res("taa.aux", history=True, check="finite"),
                 Res("taa.pos", history=True, check="finite"),
-                Res("taa.debug", check="radiance"),
-                Res("taa.alt", history=True, check="finite"),
-                Res("taa.altn", history=True, check="finite"))
+                Res("taa.debug", check="radiance"))
     # A light edit does not restart the history (a restart left one filtered 1-spp frame per
     # frame of a moving sun: flicker 3.5x Cycles'); it caps the history length at
     # light_history (2: the current frame weighs >= 1/3), so the relit region follows within a
@@ -270,36 +265,8 @@ class TAAPass(_FilterPass):
         Param("history_fallback", 1, 0, 1, "1: where no bilinear history tap is on the pixel's surface, the "
               "same-surface texels of the 3x3 around the reprojected point"),
         LIGHT_HISTORY,
-        Param("motion_jitter", 0, 0, 1, "1: frames that keep history are jittered too (the session's running R2 "
-              "index), so a moving camera is anti-aliased; 0: only warm-up and still accumulation"),
-        Param("footprint", 0, 0, 2, "1: a history texel also keeps the other surface its footprint's (jittered) "
-              "samples hit; a sample on either is the texel's surface (silhouettes under jitter), where the "
-              "reprojection moves < normal_motion; 2: also above, if this frame's 3x3 holds the texel's last surface"),
-        Param("footprint_age", 16.0, 0.0, 1024.0, "frames the footprint's other surface is kept without being "
-              "sampled again"),
-        Param("recon", 0, 0, 1, "1: this frame's value is a Gaussian mix (recon_sigma) of the 3x3 samples' "
-              "same-surface means, weighted by each sample's jittered distance from the pixel centre (Karis' "
-              "reconstruction filter; mixes surfaces within ~1 px); 0: the pixel's same-surface binomial"),
-        Param("edge_own", 0, 0, 2, "at geometric-edge pixels (a 3x3 sample on another surface) blend 1: the pixel's "
-              "own sample (its random in-pixel position carries the coverage), 2: the 3x3 same-surface binomial, "
-              "instead of the input filter"),
-        Param("recon_sigma", 0.47, 0.05, 2.0, "recon: sigma in pixels (0.47 = Karis' exp(-2.29 d^2) fit of "
-              "Blackman-Harris)"),
     )
     quality_ladder = ({"alpha": 0.2}, {"alpha": 0.1}, {"alpha": 0.1, "gamma": 1.0}, {"alpha": 0.05, "gamma": 1.0})
-
-    def resources(self) -> tuple:
-        """The footprint records (taa.alt, taa.altn) are 1x1 placeholders while ``footprint`` is 0:
-        the shader neither reads nor writes them then (not allocated at frame size, no per-frame
-        stores)."""
-        if int(self["footprint"]) > 0:
-            return tuple(self.declared)
-        return tuple(replace(d, size=(1, 1)) if d.name in ("taa.alt", "taa.altn") else d for d in self.declared)
-
-    @property
-    def resolves_jitter(self) -> bool:
-        """The session jitters frames that keep history when a pass of the graph says so."""
-        return bool(int(self["motion_jitter"]))
 
     def execute(self, rc, frame):
         res = rc.resources
@@ -308,7 +275,7 @@ class TAAPass(_FilterPass):
         units = Units(1)
         for uni, name in (("u_color", COLOR), ("u_hist", "taa.history@prev"), ("u_hist_aux", "taa.aux@prev"),
                           ("u_hist_pos", "taa.pos@prev"), ("u_gb_motion", MOTION), ("u_gb_position", POSITION),
-                          ("u_gb_normal", NORMAL), ("u_hist_alt", "taa.alt@prev"), ("u_hist_altn", "taa.altn@prev")):
+                          ("u_gb_normal", NORMAL)):
             units.tex(prog, uni, res[name])
         self._set_history_uniforms(prog, frame)  # light edits: restart or cap the history length
         set_uniform(prog, "u_alpha", float(self["alpha"]))
@@ -326,13 +293,7 @@ class TAAPass(_FilterPass):
         set_uniform(prog, "u_turned_len", float(self["turned_history"]))
         set_uniform(prog, "u_thin_neff", float(self["thin_neff"]))
         set_uniform(prog, "u_thin_radius", int(self["thin_radius"]))
-        set_uniform(prog, "u_footprint", int(self["footprint"]))
-        set_uniform(prog, "u_alt_age", float(self["footprint_age"]))
-        set_uniform(prog, "u_recon", int(self["recon"]))
-        set_uniform(prog, "u_edge_own", int(self["edge_own"]))
-        set_uniform(prog, "u_recon_sigma", float(self["recon_sigma"]))
-        set_uniform(prog, "u_jitter", tuple(float(x) for x in frame.jitter))
-        for unit, name in enumerate(("taa.history", "taa.aux", "taa.pos", "taa.debug", "taa.alt", "taa.altn")):
+        for unit, name in enumerate(("taa.history", "taa.aux", "taa.pos", "taa.debug")):
             res[name].bind_to_image(unit, read=False, write=True)
         self._run(rc, prog)
         rc.ctx.memory_barrier(0x0008 | 0x0020)
