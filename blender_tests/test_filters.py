@@ -89,9 +89,9 @@ def test_svgf_still_quarter_of_pt(scene_name):
         # the brightness of the 16 samples it averaged. With the paper's feedback (the first
         # à-trous iteration as history) SVGF/PT16 was 0.82 on the sun-lit room: the centre-sigma
         # luminance weights average a bright sample down while its neighbours ignore it, and the
-        # feedback kept that loss; the history is now the temporal integration (feedback = 0).
-        # Measured here (16 frames from an empty history, 40 px): 0.98 cornell, 0.87 sun-lit room
-        # (was 0.82): what remains is the à-trous of a young history (large variance, wide
+        # feedback kept that loss; the history is the temporal integration.
+        # Measured here (16 frames from an empty history, 40 px): 0.98 cornell, 0.87 sun-lit room:
+        # what remains is the à-trous of a young history (large variance, wide
         # luminance weights), 0.965 once the history is long (bench_filters.py, held frames)
         pt16 = float(np.mean(pt_frames))
         print(f"  mean: SVGF {imgs[-1].mean():.4f}, 16 PT frames {pt16:.4f}, Cycles {ref.mean():.4f}")

@@ -8,9 +8,9 @@
 * ``SVGFPass`` (Schied et al. 2017, "Spatiotemporal variance-guided filtering"): demodulated
   illumination reprojected through ``gbuffer.motion`` with a history length, temporal
   luminance moments (spatial estimate while the history is shorter than 4 frames),
-  variance-guided à-trous, and remodulation. The history is the temporal integration by
-  default (``feedback = 0``); ``feedback = 1`` feeds the first à-trous iteration back as the
-  paper does (it loses light on heavy-tailed input: sun-lit room 0.86 of Cycles vs 0.965).
+  variance-guided à-trous, and remodulation. The history is the temporal integration, not
+  the first à-trous iteration the paper feeds back (that loses light on heavy-tailed input:
+  sun-lit room 0.86 of Cycles vs 0.965).
 * Emission (the G-buffer surface's material emission) bypasses demodulation in ATROUS and
   SVGF: illumination = (colour - emission) / albedo, colour = filtered x albedo + emission.
 * ``TAAPass`` (Karis 2014): reprojected history (rejected by geometry), per-pixel history
@@ -65,10 +65,10 @@ class _FilterPass(Pass):
         set_uniform(prog, "u_len_cap", float(self["light_history"]) if light_edit and not light_reset else 1e9)
 
     def _atrous(self, rc, frame, src, dst_a, dst_b, iterations, mode, sigma_c, sigma_n, sigma_p,
-                feedback=None, halve_sigma=False, pair_var=0):
-        """Run ``iterations`` à-trous steps from ``src`` ping-ponging between two textures;
-        after the first step copy into ``feedback`` (SVGF's history). Returns the name of
-        the texture holding the result."""
+                halve_sigma=False):
+        """Run ``iterations`` à-trous steps from ``src`` ping-ponging between two textures
+        (``halve_sigma``: the colour sigma halves each step). Returns the name of the texture
+        holding the result."""
         res = rc.resources
         prog = rc.programs.compute("filters/atrous.comp")
         bind_frame(rc, prog, frame)
@@ -85,13 +85,10 @@ class _FilterPass(Pass):
             set_uniform(prog, "u_sigma_c", float(sigma_c) * (0.5 ** it if halve_sigma else 1.0))
             set_uniform(prog, "u_sigma_n", float(sigma_n))
             set_uniform(prog, "u_sigma_p", float(sigma_p))
-            set_uniform(prog, "u_pair_var", int(pair_var))
             res[dst].bind_to_image(0, read=False, write=True)
             self._run(rc, prog)
             rc.ctx.memory_barrier(0x0008 | 0x0020)  # the next step fetches what this one stored
             cur = dst
-            if it == 0 and feedback is not None:
-                self._copy(rc, cur, feedback, keep_alpha=True)
         return cur
 
     def _copy(self, rc, src, dst, keep_alpha=False):
@@ -169,12 +166,6 @@ class SVGFPass(_FilterPass):
         Param("sigma_luminance", 4.0, 0.1, 100.0, "luminance edge-stopping (times the standard deviation)"),
         Param("sigma_normal", 128.0, 1.0, 1024.0, "normal exponent"),
         Param("sigma_depth", 1.0, 1e-3, 100.0, "tangent-plane distance sigma (pixel footprints per pixel of tap distance)"),
-        Param("feedback", 0, 0, 1, "history fed back: 0 = the temporal integration (default: keeps the energy), "
-              "1 = the first à-trous iteration (the paper; loses light on heavy-tailed input, see docs/techniques/SVGF.md)"),
-        Param("clamp_sigma", 0.0, 0.0, 16.0, "history luminance clamp to the 3x3 mean ± this x max(spatial, "
-              "temporal sigma); 0 = off (the paper)"),
-        Param("pair_variance", 0, 0, 1, "luminance weight from the pair's variance (symmetric: keeps the energy of "
-              "bright outliers); 0 = the centre's (the paper)"),
         # edge_history 8 (against 0): Cornell slow pan trail 1.59x -> 1.44x the still level (8 draws, paired
         # -0.13 +- 0.02), every case's stability +0.01..0.09 (all < 2x), moving relMSE +5 %. docs/techniques/SVGF.md
         Param("edge_history", 8.0, 0.0, 1024.0, "history length cap at geometric-edge pixels (a 3x3 neighbour on "
@@ -200,20 +191,15 @@ class SVGFPass(_FilterPass):
             units.tex(prog, uni, res[name])
         self._set_history_uniforms(prog, frame)
         set_uniform(prog, "u_max_history", float(self["max_history"]))
-        set_uniform(prog, "u_clamp_sigma", float(self["clamp_sigma"]))
         set_uniform(prog, "u_edge_len", float(self["edge_history"]))
         for unit, name in enumerate(("svgf.a", "svgf.moments", "svgf.pos", "svgf.nrm", "svgf.dbg_var", "svgf.dbg_len")):
             res[name].bind_to_image(unit, read=False, write=True)
         self._run(rc, prog)
         rc.ctx.memory_barrier(0x0008 | 0x0020)
-        if int(self["feedback"]) == 0:
-            self._copy(rc, "svgf.a", "svgf.illum", keep_alpha=True)
-        n = int(self["iterations"])
-        # the first iteration's output becomes next frame's history (svgf.illum)
-        out = self._atrous(rc, frame, "svgf.a", "svgf.b", "svgf.a", n, 1, self["sigma_luminance"],
-                           self["sigma_normal"], self["sigma_depth"],
-                           feedback="svgf.illum" if int(self["feedback"]) == 1 else None,
-                           pair_var=int(self["pair_variance"]))
+        # the temporal integration (with its variance) is next frame's history
+        self._copy(rc, "svgf.a", "svgf.illum", keep_alpha=True)
+        out = self._atrous(rc, frame, "svgf.a", "svgf.b", "svgf.a", int(self["iterations"]), 1,
+                           self["sigma_luminance"], self["sigma_normal"], self["sigma_depth"])
         self._modulate(rc, frame, out, COLOR, demod=False)
 
 
