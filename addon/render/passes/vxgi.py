@@ -251,8 +251,6 @@ CONE_PARAMS = (
     Param("side_angle", 60.0, 20.0, 70.0, "angle of the five side cones from the normal (degrees)"),
     Param("footprint_cap", 0.35, 0.0, 4.0, "diffuse cones' footprint diameter <= this x the sample's height "
           "over the receiver's plane (0 = off): coarse mips never reach back over the receiver's own surface"),
-    Param("cone_rotation", False, doc="turn the five side cones around the normal every frame (converges a "
-          "still image over frames, but flickers under motion: 60-frame Cornell 1.4x Cycles' mean step)"),
     Param("axis_box", True, doc="read each directional face at its mip's texel centre along the face's own axis "
           "(a box, not a trilinear tent, along the direction a cone crosses it: a one-voxel wall stops a cone "
           "wherever it lies in a texel; off = trilinear)"),
@@ -412,7 +410,6 @@ class VoxelInjectPass(Pass):
         set_uniform(prog, "u_vx_cap", float(self["footprint_cap"]))
         set_uniform(prog, "u_vx_side_angle", float(np.radians(self["side_angle"])))
         set_uniform(prog, "u_audit", float(self["audit_radiance"]))
-        set_uniform(prog, "u_rotate", 1 if self["cone_rotation"] else 0)
         set_uniform(prog, "u_vx_box_ramp", float(self["box_ramp"]))
         set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
         res[VOXELS].bind_to_storage_buffer(BINDING_RECORDS)
@@ -554,7 +551,6 @@ class VoxelTracePass(Pass):
         set_uniform(prog, "u_specular", 1 if self["specular"] else 0)
         set_uniform(prog, "u_vx_cap", float(self["footprint_cap"]))
         set_uniform(prog, "u_audit", float(self["audit_radiance"]))
-        set_uniform(prog, "u_rotate", 1 if self["cone_rotation"] else 0)
         set_uniform(prog, "u_vx_box_ramp", float(self["box_ramp"]))
         res[COLOR].bind_to_image(0, read=True, write=True)
         res[DIFFUSE].bind_to_image(1, read=False, write=True)
