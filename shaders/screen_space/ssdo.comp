@@ -76,9 +76,9 @@ layout(binding = 4, rg16f) uniform writeonly image2D o_part;     // per pixel: o
 // E/pi = integral of L cos_r cos_s / (pi d^2) dA; in area measure the cosine strategy's pdf is
 // pc = cos_r cos_s / (pi d^2) and the sender strategy's pv = (flux / total) / (count area), and each
 // sample is weighted by the balance heuristic (Veach 1997): a cosine sample adds L n pc /
-// (n pc + m pv) (per direction, the sum divided by n as before), a picked sender
+// (n pc + m pv) (per direction, the sum divided by n), a picked sender
 // n L pc / (n pc + m pv) if the segment to it is free in the depth buffer (screen-space march).
-// Every sample stays bounded by its sender's radiance, as before (no 1/d^2 singularity).
+// Every sample stays bounded by its sender's radiance (no 1/d^2 singularity).
 uniform sampler2D u_flux;   // rg: flux, pixel count of the block; mip levels (power-of-two image)
 uniform int u_flux_top;     // its coarsest level (1x1)
 uniform int u_sender_samples;

@@ -259,9 +259,9 @@ void main() {
     // Towards D the voxel shows the side of each surface facing D over its projected area
     // |n.D|: premultiplied radiance, never a mix of a surface's two sides. An edge-on surface
     // (n.D = 0: every wall of an axis-aligned room for four of the six directions) shows
-    // nothing; it used to show the mean of its two sides, so a cone grazing a zero-thickness
-    // roof or wall saw half of its sun-lit outside (sunlit_room 2.7x Cycles) or of the lit
-    // room behind it. Coverage sums over buckets are capped at 1 (radiance renormalised).
+    // nothing: the mean of its two sides would let a cone grazing a zero-thickness roof or
+    // wall see half of its sun-lit outside (sunlit_room 2.7x Cycles) or of the lit room
+    // behind it. Coverage sums over buckets are capped at 1 (radiance renormalised).
     // The opacity keeps a floor of u_edge_opacity (or is 1 without directional opacity): an
     // edge-on wall shows black at that opacity (0.05 let cones grazing walls and roofs
     // through; 0.3 measured: sunlit_room 1.80 -> 1.36x Cycles, thin-wall leak 0.047 -> 0.027).

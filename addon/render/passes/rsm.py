@@ -286,8 +286,8 @@ def bind_pattern(prog, frame, gather):
     to frame. ``pattern_windows``: the frame's sample counter instead, so a moving view also
     walks the windows and the temporal pass averages 8 of them; that flickers more (60 moving
     frames, q0: 1.24x Cycles' frame-to-frame change against 1.08x with window 0: the
-    8-frame running mean leaves an eighth of each new window's error as flicker; before the
-    temporal pass existed a new pattern every frame measured 5.3x)."""
+    8-frame running mean leaves an eighth of each new window's error as flicker; without the
+    temporal pass a new pattern every frame measures 5.3x)."""
     idx = frame.sample if gather["pattern_windows"] else frame.index
     set_uniform(prog, "u_pattern", int(idx) & 0xFFFFFFFF)
 

@@ -261,7 +261,7 @@ CONE_PARAMS = (
           "0.87x); Cornell q2 one-bounce 0.925 -> 0.928"),
     Param("opaque_radiance", True, doc="a sample's radiance weights its three faces by d^2 x opacity (the faces "
           "that occlude it show it), not by d^2 alone: the black edge-on faces of a wall crossed obliquely "
-          "(edge_opacity) no longer dim its radiance (off = weighted by d^2 alone)"),
+          "(edge_opacity) do not dim its radiance (off = weighted by d^2 alone)"),
     Param("audit_radiance", 0.0, 0.0, 1e3, "energy audit (tests): > 0 = both sides of every voxelised surface "
           "show this radiance (no lights, no bounce) and GI_IndirectDiffuse holds E/pi (albedo 1); 0 = off"),
 )
@@ -292,7 +292,7 @@ class VoxelInjectPass(Pass):
               "direction (an edge-on surface shows black at this opacity; against leaks)"),
         Param("reset_bounces", 6, 1, 16, "injection runs within the frame after a history reset (first frame, "
               "camera cut, parameter change), one bounce more each: the volume starts converged instead of "
-              "building up one bounce per frame (1 = the old build-up)"),
+              "building up one bounce per frame (1 = that build-up)"),
         Param("light_cull", True, doc="many lights (at least light_cull.MIN_CULL_LIGHTS): a voxel shades exactly "
               "the lights whose range of influence holds its centre (suns always), the others by cull_samples "
               "lights chosen by power (unbiased; off = every light at every voxel)"),

@@ -38,7 +38,7 @@ import numpy as np
 from ..framegraph import Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 # the BVH, light selection and their checks live in the shared component (rt_scene.SceneRT);
-# re-exported here for scripts written against the old names
+# re-exported here for scripts that import them from this module
 from ..rt_scene import check_triangle_budget, geometry_key, light_selection  # noqa: F401
 from . import Technique, register
 
