@@ -89,9 +89,9 @@ def test_svgf_still_quarter_of_pt(scene_name):
         # the brightness of the 16 samples it averaged. With the paper's feedback (the first
         # à-trous iteration as history) SVGF/PT16 was 0.82 on the sun-lit room: the centre-sigma
         # luminance weights average a bright sample down while its neighbours ignore it, and the
-        # feedback kept that loss; the history is now the temporal integration (feedback = 0).
-        # Measured here (16 frames from an empty history, 40 px): 0.98 cornell, 0.87 sun-lit room
-        # (was 0.82): what remains is the à-trous of a young history (large variance, wide
+        # feedback kept that loss; the history is the temporal integration.
+        # Measured here (16 frames from an empty history, 40 px): 0.98 cornell, 0.87 sun-lit room:
+        # what remains is the à-trous of a young history (large variance, wide
         # luminance weights), 0.965 once the history is long (bench_filters.py, held frames)
         pt16 = float(np.mean(pt_frames))
         print(f"  mean: SVGF {imgs[-1].mean():.4f}, 16 PT frames {pt16:.4f}, Cycles {ref.mean():.4f}")
@@ -320,23 +320,68 @@ def test_denoiser_options_end_any_graph():
 
 
 # ---------------------------------------------------------------- path tracer's in-pixel positions
-def _stratified_up_to_rotation(x, n):
+def _stratified_up_to_rotation(x, n, tol=1e-4):
     """Per pixel (last axes): can the n in-pixel positions x[:n] (axis 0, in [0, 1)) be shifted
     on the circle so that each 1/n strip holds one? (A Cranley-Patterson rotation keeps a
     stratified set stratified only on the rotated grid.) The valid shifts, if any, start where
-    a point sits at a strip's lower edge, so those n shifts are the candidates."""
+    a point sits at a strip's lower edge, so those n shifts are the candidates (``tol`` below
+    it: the positions read back from an image carry float rounding)."""
     x = x[:n]
     ok = np.zeros(x.shape[1:], bool)
     for i in range(n):
-        s = np.mod(x[i], 1.0 / n) - 1e-6
+        s = np.mod(x[i], 1.0 / n) - tol
         bins = np.floor(np.mod(x - s, 1.0) * n).astype(int)
         ok |= (np.sort(bins, axis=0) == np.arange(n).reshape((n,) + (1,) * (x.ndim - 1))).all(axis=0)
     return ok
 
 
+def _uv_emitter(n):
+    """An n x n image filled by an emissive square seen straight on by an orthographic camera:
+    the square's emission colour is its (u, v), which runs from 0 to 1 across the frame, so a
+    camera ray through (px + j) / n returns colour (u, v) = (px + j) / n: the red and green of
+    a one-sample frame give back each pixel's in-pixel position j. Black base colour, black
+    world, no lights: nothing else reaches the camera."""
+    sc = bpy.data.scenes.new("pixpos")
+    r = sc.render
+    r.resolution_x = r.resolution_y = n
+    r.resolution_percentage = 100
+    sc.world = D.make_world("pixpos_world", (0.0, 0.0, 0.0))
+    me = bpy.data.meshes.new("pixpos_square")
+    me.from_pydata([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [], [(0, 1, 2, 3)])
+    uv = me.uv_layers.new(name="UVMap")
+    for loop in me.loops:
+        co = me.vertices[loop.vertex_index].co
+        uv.data[loop.index].uv = ((co.x + 1.0) / 2.0, (co.y + 1.0) / 2.0)
+    mat = D.make_principled("pixpos_mat", (0.0, 0.0, 0.0), 1.0, specular=0.0)
+    nt = mat.node_tree
+    bsdf = next(nd for nd in nt.nodes if nd.bl_idname == "ShaderNodeBsdfPrincipled")
+    tc = nt.nodes.new("ShaderNodeTexCoord")
+    nt.links.new(tc.outputs["UV"], bsdf.inputs["Emission Color"])
+    bsdf.inputs["Emission Strength"].default_value = 1.0
+    me.materials.append(mat)
+    ob = bpy.data.objects.new("pixpos_square", me)
+    sc.collection.objects.link(ob)
+    cam = bpy.data.cameras.new("pixpos_cam")
+    cam.type = "ORTHO"
+    cam.ortho_scale = 2.0
+    cam_ob = bpy.data.objects.new("pixpos_cam", cam)
+    cam_ob.location = (0.0, 0.0, 5.0)
+    sc.collection.objects.link(cam_ob)
+    sc.camera = cam_ob
+    return sc, export_scene(evaluated_depsgraph(sc))
+
+
+def _pixel_positions(img):
+    """In-pixel positions (H, W, 2) of a one-sample frame of _uv_emitter (row 0 = bottom)."""
+    h, w = img.shape[:2]
+    cols, rows = np.meshgrid(np.arange(w), np.arange(h))
+    return np.stack([np.mod(img[..., 0] * w - cols, 1.0), np.mod(img[..., 1] * h - rows, 1.0)], axis=-1)
+
+
 @pytest.mark.parametrize("sequence", [0, 1, 2])
-def test_pt_pixel_sequence_stratified_per_pixel(monkeypatch, sequence):
-    """The path tracer's in-pixel camera-ray positions (param pixel_sequence). 1: over
+def test_pt_pixel_sequence_stratified_per_pixel(sequence):
+    """The path tracer's in-pixel camera-ray positions (param pixel_sequence), read back from
+    the image of a square whose emission is its uv (_uv_emitter). 1: over
     consecutive frames of a viewport / animation (the session's running counter, starting
     wherever it is) Halton(2,3), Cranley-Patterson rotated per pixel: any 16 consecutive frames
     put one x in each 1/16 strip of the rotated grid and any 9 one y in each 1/9 strip (any
@@ -345,8 +390,7 @@ def test_pt_pixel_sequence_stratified_per_pixel(monkeypatch, sequence):
     stratified (p ~ 1e-5 per pixel even with the best rotation). 2 in a fresh accumulation
     (F12; here PT's offline renderer, whose frames keep no history): Halton."""
     from gi_preview.render.techniques import pt as ptm
-    monkeypatch.setattr(ptm.PathTracePass, "debug_pixel_positions", True)
-    sc, sd = build("cornell", 8)
+    sc, sd = _uv_emitter(8)
     sess = f"pixseq{sequence}"
 
     def check(pos, stratified):
@@ -366,10 +410,10 @@ def test_pt_pixel_sequence_stratified_per_pixel(monkeypatch, sequence):
         # quality 0: 1 spp per frame; a first frame so the session's counter is not at 0
         shot = lambda: session.render(sd, "PT", 0, 1, keep_history=True, warmup=False, session=sess).image  # noqa: E731
         shot()
-        check(np.stack([shot()[..., :2] for _ in range(16)]), sequence == 1)  # (16, 8, 8, 2)
+        check(np.stack([_pixel_positions(shot()) for _ in range(16)]), sequence == 1)  # (16, 8, 8, 2)
         if sequence == 2:
             r = get_gl().call(lambda: ptm.render_offline(get_gl().ctx, sd, 16, spp_per_frame=1, seed=3))
-            check(r["frames"][..., :2], True)
+            check(np.stack([_pixel_positions(f) for f in r["frames"]]), True)
     finally:
         release(sess)
         bpy.data.scenes.remove(sc)

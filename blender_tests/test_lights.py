@@ -2,7 +2,7 @@
 
 Scene: a floor, an emissive box (a mesh light) and 90 lights of every type at random places
 and orientations (points with and without a radius, spots, square/rectangle/disk area lights,
-two suns), powers spread over three decades. Probed by shaders/test/light_probe.comp at 2048
+two suns), powers spread over three decades. Probed by blender_tests/shaders/light_probe.comp at 2048
 random shading points (half with a normal, half without) and directions.
 
 Criteria: the selection probabilities of all lights sum to 1 (GPU, 1e-4; float64 reference of
@@ -73,18 +73,18 @@ def build_scene() -> SceneData:
 def run_probe(sd, queries):
     from gi_preview.render.gl import get_gl
     from gi_preview.render.gpu_scene import GPUScene, set_uniform
-    from gi_preview.render.shaders import ProgramCache
+    from _shaders import probe_programs
 
     gl = get_gl()
 
     def job():
         ctx = gl.ctx
         gs = GPUScene(ctx)
-        programs = ProgramCache(ctx)
+        programs = probe_programs(ctx)
         try:
             gs.update(sd)
             rt = gs.rt()
-            prog = programs.compute("test/light_probe.comp", rt.defines)
+            prog = programs.compute("light_probe.comp", rt.defines)
             rt.bind(prog)
             n = len(queries)
             qbuf = ctx.buffer(np.ascontiguousarray(queries, np.float32).tobytes())

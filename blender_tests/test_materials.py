@@ -275,7 +275,7 @@ def test_gpu_map_sampling_matches_evaluator(interp):
     from gi_preview.render.gl import get_gl
     from gi_preview.render.gpu_scene import GPUScene, set_uniform
     from gi_preview.render.scene_data import Material, SceneData, TexRef, Texture
-    from gi_preview.render.shaders import ProgramCache
+    from _shaders import probe_programs
 
     rng = np.random.default_rng(5)
     small = rng.uniform(0, 1, (3, 5, 4)).astype(np.float32)  # odd sizes, smaller than the layer
@@ -296,11 +296,11 @@ def test_gpu_map_sampling_matches_evaluator(interp):
     def job():
         ctx = gl.ctx
         gs = GPUScene(ctx)
-        programs = ProgramCache(ctx)
+        programs = probe_programs(ctx)
         outs = []
         try:
             gs.update(sd)
-            prog = programs.compute("test/material_sample.comp")
+            prog = programs.compute("material_sample.comp")
             gs.bind(prog)
             ubuf = ctx.buffer(uv.tobytes())
             obuf = ctx.buffer(reserve=len(uv) * 3 * 16)

@@ -1,5 +1,5 @@
 """The shared scene ray-tracing component (render/rt_scene.py SceneRT, shaders/lib/scene_rt.glsl)
-used from a compute pass that is not PT (shaders/test/rt_probe.comp) agrees with a CPU
+used from a compute pass that is not PT (blender_tests/shaders/rt_probe.comp) agrees with a CPU
 reference, and is shared and updated as documented.
 
 Scene: a textured floor (16 x 16 random-colour texture, UVs repeating every 2 m) and two
@@ -137,18 +137,18 @@ def bilinear_repeat(tex: np.ndarray, uv: np.ndarray) -> np.ndarray:
 def run_probe(sd, o, d, tmin, tmax):
     from gi_preview.render.gl import get_gl
     from gi_preview.render.gpu_scene import GPUScene, set_uniform
-    from gi_preview.render.shaders import ProgramCache
+    from _shaders import probe_programs
 
     gl = get_gl()
 
     def job():
         ctx = gl.ctx
         gs = GPUScene(ctx)
-        programs = ProgramCache(ctx)
+        programs = probe_programs(ctx)
         try:
             gs.update(sd)
             rt = gs.rt()
-            prog = programs.compute("test/rt_probe.comp", rt.defines)
+            prog = programs.compute("rt_probe.comp", rt.defines)
             rt.bind(prog)
             n = len(o)
             rays = np.zeros((n, 2, 4), np.float32)

@@ -19,7 +19,7 @@ before in brackets):
 * two_rooms: leak 0.016 of the lit room's mean (default) [0.027]; asserted: finite, in
   [0, 1), default <= 0.025 and below the undilated voxelisation's (0.036).
 * moving light and camera (6 frames, 1 sample each): frame-to-frame mean |diff| asserted <= 1.25x
-  Cycles' (the cones no longer rotate per frame by default: cone_rotation).
+  Cycles' (the cones do not rotate from frame to frame).
 * the viewport's first frame (history kept, no warm-up; fifth session): within 1.5 % of the F12
   image's mean, since the injection converges within a reset frame (reset_bounces); before, the
   multi-bounce light built up over 4-8 frames and that frame was ~15 % darker.

@@ -22,7 +22,7 @@ leak, stability, lag.
 * ``leak``: the thin-wall scene of blender_tests/scenes_raster3d.py (two rooms, a wall of
   zero thickness, the light in the left one, the camera in the right one): the dark room's
   mean minus Cycles' (one bounce), over the lit room's mean seen from inside it; LPV with
-  and without its geometry volume, and with the triangles' blockers (geometry_rays 2).
+  and without its geometry volume.
   ``<out>/leak.json``.
 * ``stability``: the Cornell box at 32 px, ``--stability-frames`` frames with the light and
   the camera moving every frame (viewport-like: history kept, 1 frame each): finite, the
@@ -326,7 +326,6 @@ def part_leak(o):
     if "LPV" in o.techniques.split(","):
         configs += [("LPV", {}, "LPV, geometry volume on"),
                     ("LPV", {"lpv": {"geometry_volume": False}}, "LPV, geometry volume off"),
-                    ("LPV", {"lpv": {"geometry_rays": 2}}, "LPV, geometry volume + triangles (geometry_rays 2)"),
                     ("LPV", {"lpv": {"splat_blocking": False}}, "LPV, trilinear splat not blocked (diagnosis)"),
                     ("LPV", {"lpv": {"trilinear_injection": False}}, "LPV, nearest-cell injection")]
     for q in (1,):

@@ -192,7 +192,6 @@ class Session:
         total = n_warm + samples
         warm_done = 0
         first_frame = True
-        jitter_history = keep_history and any(getattr(p, "resolves_jitter", False) for p in graph)
         for i in range(total):
             if cancel is not None and cancel.is_set():
                 if self.acc_count == 0:
@@ -202,9 +201,8 @@ class Session:
             k = self.acc_count
             # jitter: the accumulation index, so a render that does not continue an accumulation
             # (an animation frame, a moved viewport frame) is at the pixel centre; warm-up frames
-            # take the running counter, and so do frames that keep history when a pass resolves
-            # the jitter (TAA's motion_jitter; docs/techniques/TAA.md)
-            jx, jy = _r2(self.sample_counter if (is_warm or jitter_history) else k)
+            # take the running counter
+            jx, jy = _r2(self.sample_counter if is_warm else k)
             jit = np.eye(4)
             jit[0, 3] = 2.0 * jx / size[0]
             jit[1, 3] = 2.0 * jy / size[1]

@@ -23,7 +23,6 @@ uniform int u_mode;
 uniform float u_sigma_c;   // MODE 0: colour sigma (this iteration's); MODE 1: sigma_l
 uniform float u_sigma_n;   // MODE 0: normal sigma; MODE 1: normal exponent
 uniform float u_sigma_p;   // plane-distance sigma (pixel footprints per pixel of tap distance)
-uniform int u_pair_var;    // MODE 1: 1 = luminance sigma from the pair's variance (symmetric weights)
 
 vec3 tonemap(vec3 c) { return c / (1.0 + c); }
 
@@ -41,7 +40,7 @@ void main() {
     vec3 N = normalize(texelFetch(u_gb_normal, px, 0).xyz + vec3(0.0, 0.0, 1e-12));
     float ppu = pixels_per_unit(view_depth(P));
     float lc = luminance(center.rgb);
-    float sd = 0.0, vc = 0.0;
+    float sd = 0.0;
     if (u_mode == 1) {  // 3x3 Gaussian of the variance
         float v = 0.0, ws = 0.0;
         for (int dy = -1; dy <= 1; ++dy)
@@ -51,8 +50,7 @@ void main() {
                 v += w * texelFetch(u_in, q, 0).a;
                 ws += w;
             }
-        vc = max(v / ws, 0.0);
-        sd = sqrt(vc);
+        sd = sqrt(max(v / ws, 0.0));
     }
     vec3 tc = tonemap(center.rgb);
     vec3 sum = vec3(0.0);
@@ -70,11 +68,7 @@ void main() {
             float dp = abs(dot(N, pq.xyz - P)) * ppu;
             float w;
             if (u_mode == 1) {
-                // the pair's variance makes w(p, q) = w(q, p): a bright outlier is taken up by its
-                // dark neighbours as much as it takes them up (the centre-only sigma of the paper
-                // lets the outlier average itself down while its neighbours ignore it: energy lost)
-                float sdp = u_pair_var == 1 ? sqrt(0.5 * (vc + max(s.a, 0.0))) : sd;
-                float wl = (i == 0 && j == 0) ? 0.0 : abs(luminance(s.rgb) - lc) / (u_sigma_c * sdp + 1e-6);
+                float wl = (i == 0 && j == 0) ? 0.0 : abs(luminance(s.rgb) - lc) / (u_sigma_c * sd + 1e-6);
                 float wz = dp / (u_sigma_p * dist + 1e-3);
                 w = h * pow(max(dot(N, nq), 0.0), u_sigma_n) * exp(-wl - wz);
             } else {

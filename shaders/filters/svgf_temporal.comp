@@ -1,7 +1,7 @@
 // svgf_temporal.comp — SVGF's temporal stage (Schied et al. 2017, §4.1–4.2).
 // Demodulates the noisy colour (minus the surface's emission) by the G-buffer albedo,
-// reprojects last frame's filtered
-// illumination (the first à-trous iteration, fed back) and moments through gbuffer.motion
+// reprojects last frame's temporally integrated
+// illumination and moments through gbuffer.motion
 // (bilinear 2x2, each tap kept only if its surface lies on this pixel's plane, has a similar
 // normal and projects near this pixel), integrates with an exponential moving average
 // alpha = max(1/len, 1/u_max_history), and estimates the luminance variance from the
@@ -37,7 +37,6 @@ uniform sampler2D u_hist_pos;
 uniform sampler2D u_hist_nrm;
 uniform int u_reset;
 uniform float u_max_history;
-uniform float u_clamp_sigma;   // 0 = no history clamp (the paper)
 uniform float u_edge_len;      // history length cap at moving geometric-edge pixels (0: off)
 uniform float u_len_cap;       // history length cap of this frame (a light edit: light_history; else 1e9)
 
@@ -112,25 +111,6 @@ void main() {
         hc /= wsum;
         hm /= wsum;
         hlen /= wsum;
-        if (u_clamp_sigma > 0.0) {
-            // history clamp (not in the paper): the fed-back history's luminance is kept within
-            // the 3x3 mean of this frame's illumination ± u_clamp_sigma x max(spatial sigma,
-            // temporal sigma from the moments). One noisy frame's box is wide (no bias on 1-spp
-            // input); a history that no longer matches what the samples say (a value carried in
-            // from another surface at a disocclusion edge, kept for max_history frames) is cut.
-            vec2 s1 = vec2(0.0);
-            for (int dy = -1; dy <= 1; ++dy)
-                for (int dx = -1; dx <= 1; ++dx) {
-                    float lq = luminance(cur_illum(clamp(px + ivec2(dx, dy), ivec2(0), size - 1)));
-                    s1 += vec2(lq, lq * lq);
-                }
-            s1 /= 9.0;
-            float sd = max(sqrt(max(s1.y - s1.x * s1.x, 0.0)), sqrt(max(hm.y - hm.x * hm.x, 0.0)));
-            float lh = luminance(hc);
-            float lo = s1.x - u_clamp_sigma * sd, hi = s1.x + u_clamp_sigma * sd;
-            if (lh > hi && lh > 0.0) hc *= hi / lh;
-            else if (lh < lo) hc = lh > 1e-6 ? hc * (lo / lh) : vec3(lo);
-        }
         // u_edge_len: an edge pixel's value is its surfaces' coverage, which changes as the camera
         // moves; at alpha = 1/32 the history trails it by ~30 frames (Cornell slow pan)
         if (u_edge_len > 0.0 && dot(mv, mv) > 1e-8 && geometric_edge(px, size, P, N)) hlen = min(hlen, u_edge_len);

@@ -45,17 +45,11 @@ layout(binding = 0, rgba32f) uniform writeonly image2D o_hist;   // rgb result, 
 layout(binding = 1, rgba32f) uniform writeonly image2D o_aux;    // x = E[Y^2] (same average), yzw = normal
 layout(binding = 2, rgba32f) uniform writeonly image2D o_pos;    // xyz, w = 1 surface / 0 background
 layout(binding = 3, rgba32f) uniform writeonly image2D o_debug;  // r = length / max, g = share clipped
-layout(binding = 4, rgba32f) uniform writeonly image2D o_alt;    // the footprint's other surface: xyz, w = code
-layout(binding = 5, rgba32f) uniform writeonly image2D o_altn;   // its normal
 
 uniform sampler2D u_color;
 uniform sampler2D u_hist;
 uniform sampler2D u_hist_aux;
 uniform sampler2D u_hist_pos;
-uniform sampler2D u_hist_alt;
-uniform sampler2D u_hist_altn;
-uniform int u_footprint;      // 1: a history texel also keeps the other surface its footprint saw
-uniform float u_alt_age;      // frames that other surface is kept without being seen again
 uniform sampler2D u_gb_motion;
 uniform sampler2D u_gb_position;
 uniform sampler2D u_gb_normal;
@@ -75,10 +69,6 @@ uniform int u_history_filter;    // 0: bilinear history, 1: Catmull-Rom where al
 uniform float u_len_cap;  // history length kept through this frame (a light edit: light_history)
 uniform int u_hist_fallback;  // 1: 3x3 same-surface search where no bilinear tap is usable
 uniform float u_hist_normal;  // history tap kept only if its normal . this normal > this (-1: off)
-uniform int u_edge_own;       // at geometric-edge pixels blend 1: the pixel's own sample, 2: the 3x3 same-surface binomial
-uniform int u_recon;          // 1: this frame's value = Gaussian mix of the 3x3 samples' same-surface means
-uniform float u_recon_sigma;  // ... with sigma (pixels) of the Gaussian over the samples' distances
-uniform vec2 u_jitter;        // the frame's jitter (pixels): pixel q's G-buffer sample lies at q + 0.5 - u_jitter
 
 // is the history texel (position hp, normal hn) on this pixel's surface (P, N)?
 uniform float u_normal_motion;  // ... where the reprojection moves by more than this (pixels)
@@ -89,42 +79,6 @@ uniform float u_turned_len;  // history length cap where a sub-pixel move keeps 
 bool hist_same_surface(bool surf, vec3 P, vec3 N, vec4 hp, vec3 hn) {
     if (!surf) return hp.w < 0.5;
     return hp.w >= 0.5 && plane_pixels(P, N, hp.xyz) <= 2.0 && dot(N, hn) > g_ncos;
-}
-
-// Footprint records (u_footprint = 1): a history texel describes its pixel's footprint, which
-// at a silhouette holds two surfaces; under a jittered camera the pixel's sample alternates
-// between them. Record A is the last sample's surface (taa.pos, normal in taa.aux.yzw), record
-// B (taa.alt, normal taa.altn) the other surface the footprint saw most recently: w = 0 none,
-// +(1 + age) a surface, -(1 + age) the background; age = frames since it was last sampled,
-// dropped past u_alt_age. A texel holds this pixel's surface if either record does.
-// Returns 1 (record A), 2 (record B) or 0.
-// Record B counts only while this pixel's footprint still straddles both surfaces: the texel's
-// record A must be the surface of one of this frame's 3x3 samples (g_win*). Without that, a
-// pixel disoccluded from a silhouette texel (its colour mostly A) accepted it via B: the green
-// wall's history smeared into the revealed background on the Cornell pan (held relMSE 0.03 -> 0.08).
-vec3 g_winP[9];
-vec3 g_winN[9];
-bool g_winS[9];
-bool in_window(vec4 hp, vec3 hn) {
-    if (!g_moving) return true;  // a still texel is this pixel's own footprint
-    for (int k = 0; k < 9; ++k) {
-        if (hp.w < 0.5) {
-            if (!g_winS[k]) return true;
-        } else if (g_winS[k] && plane_pixels(g_winP[k], g_winN[k], hp.xyz) <= 2.0 && dot(g_winN[k], hn) > g_ncos) {
-            return true;
-        }
-    }
-    return false;
-}
-int tap_record(ivec2 t, bool surf, vec3 P, vec3 N, vec4 hp, vec3 hn) {
-    if (hist_same_surface(surf, P, N, hp, hn)) return 1;
-    if (u_footprint == 0) return 0;
-    vec4 al = texelFetch(u_hist_alt, t, 0);
-    vec4 an = texelFetch(u_hist_altn, t, 0);
-    if (!(finite4(al) && finite4(an)) || al.w == 0.0) return 0;
-    if (g_moving && u_footprint < 2) return 0;  // 1: still (sub-pixel) pixels only
-    if (!hist_same_surface(surf, P, N, vec4(al.xyz, al.w > 0.0 ? 1.0 : 0.0), an.xyz)) return 0;
-    return in_window(hp, hn) ? 2 : 0;
 }
 
 // Catmull-Rom weights of the taps at -1, 0, 1, 2 for a fraction f in [0, 1)
@@ -227,47 +181,6 @@ vec3 thin_input(ivec2 px, ivec2 size, bool surf, vec3 P, vec3 N, int r) {
     return n > 0.0 ? sum / n : sanitize(texelFetch(u_color, px, 0).rgb);
 }
 
-// Current-frame reconstruction (u_recon = 1; Karis 2014's filtered current sample): the sample
-// of pixel q lies at q + 0.5 - u_jitter (the G-buffer's jittered position), i.e. at
-// d = (q - p) - u_jitter from this pixel's centre. This frame's value is the mix over the 3x3 of
-// each sample's same-surface binomial (its denoised value) weighted by exp(-|d|^2 / 2 sigma^2)
-// across surfaces, so an edge pixel's value is already a mix of the surfaces within ~1 px.
-vec3 surface_mean(ivec2 c, ivec2 size, int r) {
-    vec4 pc = texelFetch(u_gb_position, c, 0);
-    bool surf = pc.w >= 0.0;
-    vec3 N = normalize(texelFetch(u_gb_normal, c, 0).xyz + vec3(0.0, 0.0, 1e-12));
-    vec3 sum = vec3(0.0);
-    float ws = 0.0;
-    for (int dy = -r; dy <= r; ++dy)
-        for (int dx = -r; dx <= r; ++dx) {
-            ivec2 q = c + ivec2(dx, dy);
-            if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
-            vec4 pq = texelFetch(u_gb_position, q, 0);
-            bool ok = surf ? (pq.w >= 0.0 && plane_pixels(pc.xyz, N, pq.xyz) <= 2.0
-                              && dot(N, texelFetch(u_gb_normal, q, 0).xyz) > 0.9) : pq.w < 0.0;
-            if (!ok) continue;
-            float g = r == 1 ? BINOM1[dx + 1] * BINOM1[dy + 1] : BINOM2[dx + 2] * BINOM2[dy + 2];
-            sum += g * sanitize(texelFetch(u_color, q, 0).rgb);
-            ws += g;
-        }
-    return ws > 0.0 ? sum / ws : sanitize(texelFetch(u_color, c, 0).rgb);
-}
-vec3 recon_input(ivec2 px, ivec2 size, int r) {
-    vec3 sum = vec3(0.0);
-    float ws = 0.0;
-    float k = 0.5 / max(u_recon_sigma * u_recon_sigma, 1e-4);
-    for (int dy = -1; dy <= 1; ++dy)
-        for (int dx = -1; dx <= 1; ++dx) {
-            ivec2 q = px + ivec2(dx, dy);
-            if (any(lessThan(q, ivec2(0))) || any(greaterThanEqual(q, size))) continue;
-            vec2 d = vec2(dx, dy) - u_jitter;
-            float g = exp(-k * dot(d, d));
-            sum += g * surface_mean(q, size, r);
-            ws += g;
-        }
-    return sum / max(ws, 1e-12);
-}
-
 vec3 rgb2ycocg(vec3 c) {
     return vec3(0.25 * c.r + 0.5 * c.g + 0.25 * c.b, 0.5 * c.r - 0.5 * c.b, -0.25 * c.r + 0.5 * c.g - 0.25 * c.b);
 }
@@ -292,7 +205,6 @@ void main() {
     vec3 N = normalize(texelFetch(u_gb_normal, px, 0).xyz + vec3(0.0, 0.0, 1e-12));
     vec3 m1 = vec3(0.0), m2 = vec3(0.0), same = vec3(0.0);
     float ns = 0.0;
-    bool edge = false;  // (u_edge_own) a 3x3 sample lies on another surface
     for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
             ivec2 q = clamp(px + ivec2(dx, dy), ivec2(0), size - 1);
@@ -301,14 +213,6 @@ void main() {
             m1 += y;
             m2 += y * y;
             vec4 pq = texelFetch(u_gb_position, q, 0);
-            if (u_footprint > 0 || u_edge_own > 0) {  // the 3x3's surfaces (footprint 2's window, edge test)
-                int kw = (dy + 1) * 3 + dx + 1;
-                g_winP[kw] = pq.xyz;
-                g_winN[kw] = normalize(texelFetch(u_gb_normal, q, 0).xyz + vec3(0.0, 0.0, 1e-12));
-                g_winS[kw] = pq.w >= 0.0;
-                if (!(surf ? (g_winS[kw] && plane_pixels(P, N, pq.xyz) <= 2.0 && dot(N, g_winN[kw]) > 0.9)
-                           : !g_winS[kw])) edge = true;
-            }
             bool ok = surf ? (pq.w >= 0.0 && plane_pixels(P, N, pq.xyz) <= 2.0) : pq.w < 0.0;
             if (ok) {
                 same += cq;
@@ -321,8 +225,6 @@ void main() {
 
     vec3 hc = vec3(0.0);
     float hlen = 0.0, hm2 = 0.0, wsum = 0.0, turned = 0.0;
-    vec4 oalt = vec4(0.0);
-    vec3 oaltn = vec3(0.0);
     if (u_reset == 0) {
         vec2 mv = texelFetch(u_gb_motion, px, 0).xy;
         g_guide_motion = mv;
@@ -331,32 +233,6 @@ void main() {
         if (moving) g_ncos = u_hist_normal;
         g_moving = moving;
         g_moved = dot(mv, mv) > 1e-8;
-        // this pixel's record B, from the history texel nearest to the reprojected centre: if
-        // this sample is on that texel's record A, its B ages by a frame; otherwise (this sample
-        // is on its B, or on neither: the first sample of a new surface in the footprint) the
-        // texel's A becomes the other surface, seen last frame
-        ivec2 cn = ivec2(floor(prev + 0.5));
-        if (u_footprint >= 1 && all(greaterThanEqual(cn, ivec2(0))) && all(lessThan(cn, size))) {
-            vec4 h = texelFetch(u_hist, cn, 0);
-            vec4 ha = texelFetch(u_hist_aux, cn, 0);
-            vec4 hp = texelFetch(u_hist_pos, cn, 0);
-            if (finite4(h) && finite4(ha) && finite4(hp) && h.a >= 1.0) {
-                int r = tap_record(cn, surf, P, N, hp, ha.yzw);
-                if (r == 1) {
-                    vec4 al = texelFetch(u_hist_alt, cn, 0);
-                    vec4 an = texelFetch(u_hist_altn, cn, 0);
-                    float age = abs(al.w);  // = old age + 1
-                    if (finite4(al) && finite4(an) && al.w != 0.0 && age <= u_alt_age
-                        && in_window(vec4(al.xyz, al.w > 0.0 ? 1.0 : 0.0), an.xyz)) {
-                        oalt = vec4(al.xyz, sign(al.w) * (age + 1.0));
-                        oaltn = an.xyz;
-                    }
-                } else if (r == 2 || in_window(hp, ha.yzw)) {
-                    oalt = vec4(hp.xyz, hp.w >= 0.5 ? 1.0 : -1.0);
-                    oaltn = ha.yzw;
-                }
-            }
-        }
         ivec2 b = ivec2(floor(prev));
         vec2 f = prev - vec2(b);
         for (int j = 0; j < 2; ++j)
@@ -367,7 +243,7 @@ void main() {
                 vec4 ha = texelFetch(u_hist_aux, t, 0);
                 vec4 hp = texelFetch(u_hist_pos, t, 0);
                 if (!(finite4(h) && finite4(ha) && finite4(hp)) || h.a < 1.0) continue;
-                if (tap_record(t, surf, P, N, hp, ha.yzw) == 0) continue;
+                if (!hist_same_surface(surf, P, N, hp, ha.yzw)) continue;
                 float w = (i == 0 ? 1.0 - f.x : f.x) * (j == 0 ? 1.0 - f.y : f.y);
                 if (g_moved && !g_moving && surf && dot(N, ha.yzw) <= u_hist_normal) turned += w;
                 hc += w * max(h.rgb, vec3(0.0));
@@ -392,7 +268,7 @@ void main() {
                     vec4 hp = texelFetch(u_hist_pos, t, 0);
                     vec4 ha = texelFetch(u_hist_aux, t, 0);
                     if (!(finite4(h) && finite4(hp) && finite4(ha)) || h.a < 1.0
-                        || tap_record(t, surf, P, N, hp, ha.yzw) == 0) { ok = false; break; }
+                        || !hist_same_surface(surf, P, N, hp, ha.yzw)) { ok = false; break; }
                     cr += cx[i + 1] * cyw[j + 1] * max(h.rgb, vec3(0.0));
                 }
             if (ok) hc = wsum * max(cr, vec3(0.0));  // hc is divided by wsum below
@@ -410,7 +286,7 @@ void main() {
                     vec4 ha = texelFetch(u_hist_aux, t, 0);
                     vec4 hp = texelFetch(u_hist_pos, t, 0);
                     if (!(finite4(h) && finite4(ha) && finite4(hp)) || h.a < 1.0) continue;
-                    if (tap_record(t, surf, P, N, hp, ha.yzw) == 0) continue;
+                    if (!hist_same_surface(surf, P, N, hp, ha.yzw)) continue;
                     hc += max(h.rgb, vec3(0.0));
                     hlen += h.a;
                     hm2 += max(ha.x, 0.0);
@@ -441,13 +317,6 @@ void main() {
             if (len <= u_young && thin_surface(px, size, surf, P, N))
                 curf = thin_input(px, size, surf, P, N, u_thin_radius);
         }
-        if (u_recon == 1) curf = recon_input(px, size, len <= u_young ? 2 : u_radius);
-        // u_edge_own: at a geometric edge this pixel's own sample is the only one whose (random,
-        // box-distributed) position lies in its footprint: the same-surface filter would dilute the
-        // other surface's coverage with the neighbours' pure samples
-        if (u_edge_own == 1 && edge) curf = cur;
-        vec3 bm3, bs3;  // (2: the 3x3 same-surface binomial there; the clip box stays the 5x5's)
-        if (u_edge_own == 2 && edge) curf = filtered_input(px, size, surf, P, N, 1, bm3, bs3);
         vec3 hy = rgb2ycocg(hc);
         float sig_t = sqrt(max(hm2 - hy.x * hy.x, 0.0));
         vec3 e = u_gamma * max(bs, vec3(sig_t));
@@ -464,7 +333,6 @@ void main() {
              : u_input_filter == 1 ? filtered_input(px, size, surf, P, N, 2, bm, bs) : (ns > 0.0 ? same / ns : cur);
         if (u_input_filter == 1 && surf && thin_surface(px, size, surf, P, N))
             outc = thin_input(px, size, surf, P, N, u_thin_radius);
-        if (u_recon == 1) outc = recon_input(px, size, 2);
         len = ns >= 4.0 ? 2.0 : 1.0;
         om2 = ycur * ycur;
         clipped = 1.0;
@@ -473,10 +341,5 @@ void main() {
     imageStore(o_hist, px, vec4(outc, len));
     imageStore(o_aux, px, vec4(isnan(om2) || isinf(om2) ? 0.0 : om2, surf ? N : vec3(0.0)));
     imageStore(o_pos, px, surf ? vec4(P, 1.0) : vec4(0.0));
-    // taa.alt / taa.altn are 1x1 placeholders while footprint is 0: only their one texel is cleared
-    if (u_footprint > 0 || (px.x == 0 && px.y == 0)) {
-        imageStore(o_alt, px, oalt);
-        imageStore(o_altn, px, vec4(oaltn, 0.0));
-    }
     imageStore(o_debug, px, vec4(vec3(len / max(u_max_history, 1.0), min(clipped, 1.0), 0.0), 1.0));
 }

@@ -165,9 +165,6 @@ void main() {
         vec2 j = rng_next2(rng);  // drawn in both modes: the path's random numbers stay the same
         if (u_pixel_sequence >= 1) j = pixel_halton(px, u_sample * uint(u_spp) + uint(k));
         PathOut r = trace_path(vec2(px) + j, rng);
-#ifdef PT_DEBUG_PIXEL_POS
-        r.color = vec3(j, 0.0);  // tests: the colour is the in-pixel position
-#endif
         acc.color += sanitize(r.color);
         acc.direct += sanitize(r.direct);
         acc.ind_diffuse += sanitize(r.ind_diffuse);

@@ -16,43 +16,16 @@ uniform int u_vpl_samples;
 uniform float u_disk_radius;   // fraction of the RSM side
 uniform float u_min_distance;  // d_min of the kernel's distance clamp
 uniform int u_exact_weights;
-uniform int u_filtered_vpls;   // 1: bilinear VPLs (rsm_vpl), 0: the nearest texel
 
-// The VPL at atlas position tc (texels, inside view rect): position, normal (w unused) and
-// flux. Filtered: the bilinear blend of the 4 nearest texels of the view, unseen texels
-// (w = 0) left out of position and normal and counting as no flux, so a sample's VPL moves
-// continuously with the light instead of snapping from texel to texel (the 1/d^4 kernel
-// turns a snap of one texel near the receiver into a visible step). Returns false where no
-// texel of the footprint saw a surface.
+// The VPL at atlas position tc (texels, inside view rect): position, normal and flux of the
+// nearest texel. Returns false where that texel saw no surface.
 bool rsm_vpl(vec4 rect, vec2 tc, out vec3 xp, out vec3 np, out vec3 flux) {
-    if (u_filtered_vpls == 0) {
-        ivec2 t = ivec2(rect.xy) + min(ivec2(tc), ivec2(rect.zw) - 1);
-        vec4 p = texelFetch(u_rsm_pos, t, 0);
-        xp = p.xyz;
-        np = texelFetch(u_rsm_nrm, t, 0).xyz;
-        flux = texelFetch(u_rsm_flux, t, 0).rgb;
-        return p.w >= 0.5;
-    }
-    vec2 f = clamp(tc - 0.5, vec2(0.0), rect.zw - 1.0);
-    ivec2 b = min(ivec2(f), ivec2(rect.zw) - 2);
-    vec2 w = f - vec2(b);
-    vec4 P = vec4(0.0);
-    vec3 Nn = vec3(0.0);
-    flux = vec3(0.0);
-    for (int k = 0; k < 4; ++k) {
-        ivec2 o = ivec2(k & 1, k >> 1);
-        float wk = (o.x == 1 ? w.x : 1.0 - w.x) * (o.y == 1 ? w.y : 1.0 - w.y);
-        ivec2 t = ivec2(rect.xy) + b + o;
-        vec4 p = texelFetch(u_rsm_pos, t, 0);
-        if (p.w < 0.5 || wk <= 0.0) continue;
-        P += wk * vec4(p.xyz, 1.0);
-        Nn += wk * texelFetch(u_rsm_nrm, t, 0).xyz;
-        flux += wk * texelFetch(u_rsm_flux, t, 0).rgb;
-    }
-    if (P.w < 1e-4) return false;
-    xp = P.xyz / P.w;
-    np = Nn / P.w;
-    return true;
+    ivec2 t = ivec2(rect.xy) + min(ivec2(tc), ivec2(rect.zw) - 1);
+    vec4 p = texelFetch(u_rsm_pos, t, 0);
+    xp = p.xyz;
+    np = texelFetch(u_rsm_nrm, t, 0).xyz;
+    flux = texelFetch(u_rsm_flux, t, 0).rgb;
+    return p.w >= 0.5;
 }
 
 // Projection of P into view v, in [0,1]^2 (clamped; the centre when P is behind the view).

@@ -76,9 +76,9 @@ layout(binding = 4, rg16f) uniform writeonly image2D o_part;     // per pixel: o
 // E/pi = integral of L cos_r cos_s / (pi d^2) dA; in area measure the cosine strategy's pdf is
 // pc = cos_r cos_s / (pi d^2) and the sender strategy's pv = (flux / total) / (count area), and each
 // sample is weighted by the balance heuristic (Veach 1997): a cosine sample adds L n pc /
-// (n pc + m pv) (per direction, the sum divided by n as before), a picked sender
+// (n pc + m pv) (per direction, the sum divided by n), a picked sender
 // n L pc / (n pc + m pv) if the segment to it is free in the depth buffer (screen-space march).
-// Every sample stays bounded by its sender's radiance, as before (no 1/d^2 singularity).
+// Every sample stays bounded by its sender's radiance (no 1/d^2 singularity).
 uniform sampler2D u_flux;   // rg: flux, pixel count of the block; mip levels (power-of-two image)
 uniform int u_flux_top;     // its coarsest level (1x1)
 uniform int u_sender_samples;
@@ -166,34 +166,6 @@ bool segment_free(vec3 O, vec3 Ps, float jitter) {
         if (dh < ds - u_bias && ds - dh < step + 0.05 * len * f && distance(hpos.xyz, Ps) > step) return false;
     }
     return true;
-}
-#endif
-
-#if defined(SSDO_SENDERS) && defined(SSDO_SENDER_CLASS_TEST)
-// Diagnostic / alternative estimator (define SSDO_SENDER_CLASS_TEST; off by default): how a
-// cosine sample in direction dir (distance fraction s) is classified (the main loop's tests,
-// without their radiance): 1 = blocked by an on-screen sender (the near-field point is behind
-// the depth buffer, or the far-field march met a surface), 2 = off screen (traced or unknown),
-// 0 = open. With the define a picked sender counts only when the direction towards it would be
-// blocked. By default it also counts where the cosine samples call that direction off screen
-// (the far-field march at a grazing view of a floor steps behind it by more than its thickness,
-// then off the screen; there the traced ray or the on-screen mean stands for it at full weight)
-// or open: the two strategies' weights then sum to more (or less) than one there. Drawing the
-// test with a fresh s makes them sum to one: the sender is accepted with the probability with
-// which a cosine sample in its direction is blocked. Measured (docs/techniques/SSDO.md, fourth
-// session): bounce_room ceiling relMSE 0.0294 -> 0.0192 (mean 0.498 -> 0.450, Cycles 0.464),
-// but sun-lit q1 0.00745 -> 0.00875 and cornell q1 0.0324 -> 0.0412: the default's double count
-// offsets SSDO's under-estimate on the demo scenes, so the default keeps it.
-int cosine_class(vec3 O, vec3 dir, float s, float d0) {
-    vec3 S = O + dir * (u_radius * mix(0.1, 1.0, s));
-    vec2 sp = to_pixel(S);
-    if (!on_screen(sp)) return 2;
-    vec4 hpos = texelFetch(u_gb_position, ivec2(sp), 0);
-    if (hpos.w < 0.0) return 0;
-    float ds = view_depth(S), dh = view_depth(hpos.xyz);
-    if (dh < ds - u_bias && abs(d0 - dh) < u_radius) return 1;
-    ivec2 fp = far_blocker(O, dir, u_radius, fract(s + 0.5));
-    return fp.x == -2 ? 2 : fp.x < 0 ? 0 : 1;
 }
 #endif
 
@@ -307,8 +279,7 @@ void main() {
     if (live && total > 0.0) {
         Rng sr = rng_init(uvec2(px), u_sample, 17u);
         for (int j = 0; j < u_sender_samples; ++j) {
-            vec4 r4 = rng_next4(sr);  // xy as rng_next2; z: the class test's distance
-            vec2 r2 = r4.xy;
+            vec2 r2 = rng_next2(sr);
             ivec2 sp = pick_sender(r2.x);
             if (sp.x < 0 || any(greaterThanEqual(sp, ivec2(u_resolution)))) continue;
             GPixel f = fetch_g(sp);
@@ -321,9 +292,6 @@ void main() {
             float pc = cr * cs / (PI * d2);
             float pv = sender_pdf(sp, f.P, f.N, total);
             if (pv <= 0.0 || !segment_free(O, f.P, r2.y)) continue;
-#ifdef SSDO_SENDER_CLASS_TEST
-            if (cosine_class(O, w, r4.z, d0) != 1) continue;
-#endif
             bounce += W_SEND * texelFetch(u_radiance, sp, 0).rgb *
                       trust_weight(texelFetch(u_trust, sp, 0).rg, view_dir(f.P), -w) *
                       (nf * pc / (nf * pc + mf * pv));

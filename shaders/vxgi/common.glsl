@@ -218,8 +218,7 @@ vec4 vx_cone(vec3 o, vec3 d, float tan_half, float t0, float t1, float step_scal
 // Six cones around n: one along n and five at u_vx_side_angle from it, aperture tan(30 deg)
 // (Crassin; Godot's layout at 60 degrees: weights pi/4 and 3 pi/20). The weights are each
 // cone's cosine-weighted solid angle, Omega cos(theta), scaled so that they sum to pi: a
-// uniform radiance L gives E = pi L. `rot` turns the five around n (rotated every frame,
-// the pattern converges as frames accumulate). `world` (0 or 1): add the world's radiance
+// uniform radiance L gives E = pi L. `world` (0 or 1): add the world's radiance
 // for the part of each cone that escapes (1 - opacity), looked up along the cone in the
 // world map prefiltered to the cone's width (vx_sky); `bounce` scales what the cones gather
 // from the voxels (0: world light only). Returns E; `vis` = the cosine-weighted unoccluded
@@ -232,7 +231,7 @@ vec3 vx_sky(vec3 d) { return world_glossy(d, 0.52); }
 #else
 vec3 vx_sky(vec3 d) { return vec3(0.0); }
 #endif
-vec3 vx_diffuse_cones(vec3 o, vec3 n, float t0, float t1, float step_scale, float rot, float world,
+vec3 vx_diffuse_cones(vec3 o, vec3 n, float t0, float t1, float step_scale, float world,
                       float bounce, out float vis, float h0) {
     vec3 t, b;
     make_basis(n, t, b);
@@ -248,7 +247,7 @@ vec3 vx_diffuse_cones(vec3 o, vec3 n, float t0, float t1, float step_scale, floa
             d = n;
             w = w0;
         } else {
-            float phi = rot + TWO_PI * float(k - 1) / 5.0;
+            float phi = TWO_PI * float(k - 1) / 5.0;
             d = normalize(ct * n + st * (cos(phi) * t + sin(phi) * b));
             w = w0 * ct;
         }

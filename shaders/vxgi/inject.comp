@@ -62,7 +62,6 @@ uniform uint u_sample;
 uniform int u_directional_opacity;  // level-0 opacity towards D: |n.D| (else 1)
 uniform float u_edge_opacity;       // smallest level-0 opacity of an occupied voxel (directional opacity)
 uniform float u_audit;  // > 0: energy audit, both sides of every surface show this radiance
-uniform int u_rotate;  // 1: the five side cones turn around the normal every frame
 uniform int u_cull;          // 1: lights out of a voxel's range by u_cull_samples power samples (else every light)
 uniform int u_cull_samples;
 uniform int u_direct_mode;   // 0: compute the direct light; 1: compute and store it; 2: load the stored one
@@ -196,7 +195,6 @@ void main() {
     float vs = o.w;
     vec3 centre = o.xyz + (vec3(v) + 0.5) * vs;
     Rng rng = rng_init(uvec2(gid.x + gid.z * N, gid.y), u_sample, 7u);
-    float rot = u_rotate == 1 ? fract(float(u_sample % 4096u) * 0.6180339887) * TWO_PI : 0.0;
     float off = u_normal_offset * vs;
     // per direction D: the buckets facing D (their front side, n.D > 0) composited over those
     // facing away (their back side), each over its projected coverage |n.D|
@@ -237,8 +235,8 @@ void main() {
         }
         if (u_gather == 1 && u_audit <= 0.0) {
             float vis;
-            Ep += vx_diffuse_cones(p + n * off, n, vs, u_max_distance, u_step, rot, 1.0, float(u_bounce), vis, off);
-            Em += vx_diffuse_cones(p - n * off, -n, vs, u_max_distance, u_step, rot, 1.0, float(u_bounce), vis, off);
+            Ep += vx_diffuse_cones(p + n * off, n, vs, u_max_distance, u_step, 1.0, float(u_bounce), vis, off);
+            Em += vx_diffuse_cones(p - n * off, -n, vs, u_max_distance, u_step, 1.0, float(u_bounce), vis, off);
         }
         vec3 Lp = sanitize(rho * INV_PI * Ep), Lm = sanitize(rho * INV_PI * Em);
         // a dilated voxel (its centre more than half a voxel off the plane) lies on one side of
@@ -256,9 +254,9 @@ void main() {
     // Towards D the voxel shows the side of each surface facing D over its projected area
     // |n.D|: premultiplied radiance, never a mix of a surface's two sides. An edge-on surface
     // (n.D = 0: every wall of an axis-aligned room for four of the six directions) shows
-    // nothing; it used to show the mean of its two sides, so a cone grazing a zero-thickness
-    // roof or wall saw half of its sun-lit outside (sunlit_room 2.7x Cycles) or of the lit
-    // room behind it. Coverage sums over buckets are capped at 1 (radiance renormalised).
+    // nothing: the mean of its two sides would let a cone grazing a zero-thickness roof or
+    // wall see half of its sun-lit outside (sunlit_room 2.7x Cycles) or of the lit room
+    // behind it. Coverage sums over buckets are capped at 1 (radiance renormalised).
     // The opacity keeps a floor of u_edge_opacity (or is 1 without directional opacity): an
     // edge-on wall shows black at that opacity (0.05 let cones grazing walls and roofs
     // through; 0.3 measured: sunlit_room 1.80 -> 1.36x Cycles, thin-wall leak 0.047 -> 0.027).

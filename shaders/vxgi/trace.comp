@@ -30,7 +30,6 @@ uniform float u_max_distance;
 uniform float u_min_tan;
 uniform int u_specular;
 uniform float u_audit;  // > 0: energy audit: GI_IndirectDiffuse = E / pi (albedo 1)
-uniform int u_rotate;  // 1: the five side cones turn around the normal every frame
 
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
@@ -52,10 +51,9 @@ void main() {
     vec3 ks = specular_albedo(s, NoV);
     float vs = vx_voxel_size_at(g.P);
     vec3 o = g.P + Ng * (u_normal_offset * vs);
-    float rot = u_rotate == 1 ? fract(float(u_sample % 4096u) * 0.6180339887) * TWO_PI : 0.0;
     float vis = 1.0;
     vec3 E = vec3(0.0);
-    if (max3(kd) > 0.0) E = vx_diffuse_cones(o, N, vs, u_max_distance, u_step, rot, 0.0, 1.0, vis, u_normal_offset * vs);
+    if (max3(kd) > 0.0) E = vx_diffuse_cones(o, N, vs, u_max_distance, u_step, 0.0, 1.0, vis, u_normal_offset * vs);
     vec3 diffuse = (u_audit > 0.0 ? vec3(1.0) : kd) * E * INV_PI;
     vec3 glossy = vec3(0.0);
     if (u_specular == 1 && max3(ks) > 1e-4) {

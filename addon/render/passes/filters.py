@@ -8,9 +8,9 @@
 * ``SVGFPass`` (Schied et al. 2017, "Spatiotemporal variance-guided filtering"): demodulated
   illumination reprojected through ``gbuffer.motion`` with a history length, temporal
   luminance moments (spatial estimate while the history is shorter than 4 frames),
-  variance-guided à-trous, and remodulation. The history is the temporal integration by
-  default (``feedback = 0``); ``feedback = 1`` feeds the first à-trous iteration back as the
-  paper does (it loses light on heavy-tailed input: sun-lit room 0.86 of Cycles vs 0.965).
+  variance-guided à-trous, and remodulation. The history is the temporal integration, not
+  the first à-trous iteration the paper feeds back (that loses light on heavy-tailed input:
+  sun-lit room 0.86 of Cycles vs 0.965).
 * Emission (the G-buffer surface's material emission) bypasses demodulation in ATROUS and
   SVGF: illumination = (colour - emission) / albedo, colour = filtered x albedo + emission.
 * ``TAAPass`` (Karis 2014): reprojected history (rejected by geometry), per-pixel history
@@ -28,8 +28,6 @@ has none) to a technique's passes: the session does this for ``scene.gi_preview.
 and ``scene.gi_preview.use_taa``.
 """
 from __future__ import annotations
-
-from dataclasses import replace
 
 from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Param, Pass, Res
 from ..gpu_scene import set_uniform
@@ -67,10 +65,10 @@ class _FilterPass(Pass):
         set_uniform(prog, "u_len_cap", float(self["light_history"]) if light_edit and not light_reset else 1e9)
 
     def _atrous(self, rc, frame, src, dst_a, dst_b, iterations, mode, sigma_c, sigma_n, sigma_p,
-                feedback=None, halve_sigma=False, pair_var=0):
-        """Run ``iterations`` à-trous steps from ``src`` ping-ponging between two textures;
-        after the first step copy into ``feedback`` (SVGF's history). Returns the name of
-        the texture holding the result."""
+                halve_sigma=False):
+        """Run ``iterations`` à-trous steps from ``src`` ping-ponging between two textures
+        (``halve_sigma``: the colour sigma halves each step). Returns the name of the texture
+        holding the result."""
         res = rc.resources
         prog = rc.programs.compute("filters/atrous.comp")
         bind_frame(rc, prog, frame)
@@ -87,13 +85,10 @@ class _FilterPass(Pass):
             set_uniform(prog, "u_sigma_c", float(sigma_c) * (0.5 ** it if halve_sigma else 1.0))
             set_uniform(prog, "u_sigma_n", float(sigma_n))
             set_uniform(prog, "u_sigma_p", float(sigma_p))
-            set_uniform(prog, "u_pair_var", int(pair_var))
             res[dst].bind_to_image(0, read=False, write=True)
             self._run(rc, prog)
             rc.ctx.memory_barrier(0x0008 | 0x0020)  # the next step fetches what this one stored
             cur = dst
-            if it == 0 and feedback is not None:
-                self._copy(rc, cur, feedback, keep_alpha=True)
         return cur
 
     def _copy(self, rc, src, dst, keep_alpha=False):
@@ -171,12 +166,6 @@ class SVGFPass(_FilterPass):
         Param("sigma_luminance", 4.0, 0.1, 100.0, "luminance edge-stopping (times the standard deviation)"),
         Param("sigma_normal", 128.0, 1.0, 1024.0, "normal exponent"),
         Param("sigma_depth", 1.0, 1e-3, 100.0, "tangent-plane distance sigma (pixel footprints per pixel of tap distance)"),
-        Param("feedback", 0, 0, 1, "history fed back: 0 = the temporal integration (default: keeps the energy), "
-              "1 = the first à-trous iteration (the paper; loses light on heavy-tailed input, see docs/techniques/SVGF.md)"),
-        Param("clamp_sigma", 0.0, 0.0, 16.0, "history luminance clamp to the 3x3 mean ± this x max(spatial, "
-              "temporal sigma); 0 = off (the paper)"),
-        Param("pair_variance", 0, 0, 1, "luminance weight from the pair's variance (symmetric: keeps the energy of "
-              "bright outliers); 0 = the centre's (the paper)"),
         # edge_history 8 (against 0): Cornell slow pan trail 1.59x -> 1.44x the still level (8 draws, paired
         # -0.13 +- 0.02), every case's stability +0.01..0.09 (all < 2x), moving relMSE +5 %. docs/techniques/SVGF.md
         Param("edge_history", 8.0, 0.0, 1024.0, "history length cap at geometric-edge pixels (a 3x3 neighbour on "
@@ -202,20 +191,15 @@ class SVGFPass(_FilterPass):
             units.tex(prog, uni, res[name])
         self._set_history_uniforms(prog, frame)
         set_uniform(prog, "u_max_history", float(self["max_history"]))
-        set_uniform(prog, "u_clamp_sigma", float(self["clamp_sigma"]))
         set_uniform(prog, "u_edge_len", float(self["edge_history"]))
         for unit, name in enumerate(("svgf.a", "svgf.moments", "svgf.pos", "svgf.nrm", "svgf.dbg_var", "svgf.dbg_len")):
             res[name].bind_to_image(unit, read=False, write=True)
         self._run(rc, prog)
         rc.ctx.memory_barrier(0x0008 | 0x0020)
-        if int(self["feedback"]) == 0:
-            self._copy(rc, "svgf.a", "svgf.illum", keep_alpha=True)
-        n = int(self["iterations"])
-        # the first iteration's output becomes next frame's history (svgf.illum)
-        out = self._atrous(rc, frame, "svgf.a", "svgf.b", "svgf.a", n, 1, self["sigma_luminance"],
-                           self["sigma_normal"], self["sigma_depth"],
-                           feedback="svgf.illum" if int(self["feedback"]) == 1 else None,
-                           pair_var=int(self["pair_variance"]))
+        # the temporal integration (with its variance) is next frame's history
+        self._copy(rc, "svgf.a", "svgf.illum", keep_alpha=True)
+        out = self._atrous(rc, frame, "svgf.a", "svgf.b", "svgf.a", int(self["iterations"]), 1,
+                           self["sigma_luminance"], self["sigma_normal"], self["sigma_depth"])
         self._modulate(rc, frame, out, COLOR, demod=False)
 
 
@@ -225,16 +209,13 @@ class TAAPass(_FilterPass):
     (see shaders/filters/taa.comp)."""
 
     name = "taa"
-    reads = (COLOR, MOTION, POSITION, NORMAL, "taa.history@prev", "taa.aux@prev", "taa.pos@prev",
-             "taa.alt@prev", "taa.altn@prev")
-    writes = (COLOR, "taa.history", "taa.aux", "taa.pos", "taa.debug", "taa.alt", "taa.altn")
+    reads = (COLOR, MOTION, POSITION, NORMAL, "taa.history@prev", "taa.aux@prev", "taa.pos@prev")
+    writes = (COLOR, "taa.history", "taa.aux", "taa.pos", "taa.debug")
     declared = (Res(COLOR, check="radiance"),
                 Res("taa.history", history=True, check="radiance"),
                 Res("taa.aux", history=True, check="finite"),
                 Res("taa.pos", history=True, check="finite"),
-                Res("taa.debug", check="radiance"),
-                Res("taa.alt", history=True, check="finite"),
-                Res("taa.altn", history=True, check="finite"))
+                Res("taa.debug", check="radiance"))
     # A light edit does not restart the history (a restart left one filtered 1-spp frame per
     # frame of a moving sun: flicker 3.5x Cycles'); it caps the history length at
     # light_history (2: the current frame weighs >= 1/3), so the relit region follows within a
@@ -270,36 +251,8 @@ class TAAPass(_FilterPass):
         Param("history_fallback", 1, 0, 1, "1: where no bilinear history tap is on the pixel's surface, the "
               "same-surface texels of the 3x3 around the reprojected point"),
         LIGHT_HISTORY,
-        Param("motion_jitter", 0, 0, 1, "1: frames that keep history are jittered too (the session's running R2 "
-              "index), so a moving camera is anti-aliased; 0: only warm-up and still accumulation"),
-        Param("footprint", 0, 0, 2, "1: a history texel also keeps the other surface its footprint's (jittered) "
-              "samples hit; a sample on either is the texel's surface (silhouettes under jitter), where the "
-              "reprojection moves < normal_motion; 2: also above, if this frame's 3x3 holds the texel's last surface"),
-        Param("footprint_age", 16.0, 0.0, 1024.0, "frames the footprint's other surface is kept without being "
-              "sampled again"),
-        Param("recon", 0, 0, 1, "1: this frame's value is a Gaussian mix (recon_sigma) of the 3x3 samples' "
-              "same-surface means, weighted by each sample's jittered distance from the pixel centre (Karis' "
-              "reconstruction filter; mixes surfaces within ~1 px); 0: the pixel's same-surface binomial"),
-        Param("edge_own", 0, 0, 2, "at geometric-edge pixels (a 3x3 sample on another surface) blend 1: the pixel's "
-              "own sample (its random in-pixel position carries the coverage), 2: the 3x3 same-surface binomial, "
-              "instead of the input filter"),
-        Param("recon_sigma", 0.47, 0.05, 2.0, "recon: sigma in pixels (0.47 = Karis' exp(-2.29 d^2) fit of "
-              "Blackman-Harris)"),
     )
     quality_ladder = ({"alpha": 0.2}, {"alpha": 0.1}, {"alpha": 0.1, "gamma": 1.0}, {"alpha": 0.05, "gamma": 1.0})
-
-    def resources(self) -> tuple:
-        """The footprint records (taa.alt, taa.altn) are 1x1 placeholders while ``footprint`` is 0:
-        the shader neither reads nor writes them then (not allocated at frame size, no per-frame
-        stores)."""
-        if int(self["footprint"]) > 0:
-            return tuple(self.declared)
-        return tuple(replace(d, size=(1, 1)) if d.name in ("taa.alt", "taa.altn") else d for d in self.declared)
-
-    @property
-    def resolves_jitter(self) -> bool:
-        """The session jitters frames that keep history when a pass of the graph says so."""
-        return bool(int(self["motion_jitter"]))
 
     def execute(self, rc, frame):
         res = rc.resources
@@ -308,7 +261,7 @@ class TAAPass(_FilterPass):
         units = Units(1)
         for uni, name in (("u_color", COLOR), ("u_hist", "taa.history@prev"), ("u_hist_aux", "taa.aux@prev"),
                           ("u_hist_pos", "taa.pos@prev"), ("u_gb_motion", MOTION), ("u_gb_position", POSITION),
-                          ("u_gb_normal", NORMAL), ("u_hist_alt", "taa.alt@prev"), ("u_hist_altn", "taa.altn@prev")):
+                          ("u_gb_normal", NORMAL)):
             units.tex(prog, uni, res[name])
         self._set_history_uniforms(prog, frame)  # light edits: restart or cap the history length
         set_uniform(prog, "u_alpha", float(self["alpha"]))
@@ -326,13 +279,7 @@ class TAAPass(_FilterPass):
         set_uniform(prog, "u_turned_len", float(self["turned_history"]))
         set_uniform(prog, "u_thin_neff", float(self["thin_neff"]))
         set_uniform(prog, "u_thin_radius", int(self["thin_radius"]))
-        set_uniform(prog, "u_footprint", int(self["footprint"]))
-        set_uniform(prog, "u_alt_age", float(self["footprint_age"]))
-        set_uniform(prog, "u_recon", int(self["recon"]))
-        set_uniform(prog, "u_edge_own", int(self["edge_own"]))
-        set_uniform(prog, "u_recon_sigma", float(self["recon_sigma"]))
-        set_uniform(prog, "u_jitter", tuple(float(x) for x in frame.jitter))
-        for unit, name in enumerate(("taa.history", "taa.aux", "taa.pos", "taa.debug", "taa.alt", "taa.altn")):
+        for unit, name in enumerate(("taa.history", "taa.aux", "taa.pos", "taa.debug")):
             res[name].bind_to_image(unit, read=False, write=True)
         self._run(rc, prog)
         rc.ctx.memory_barrier(0x0008 | 0x0020)

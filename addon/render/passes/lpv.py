@@ -27,10 +27,7 @@
      channel a of the *staggered* cell between the two cell centres the surfel lies
      between along axis a (one slab per cascade; surfels wider than a cell are split). The
      flux crossing between two cells is scaled by ``1 − B`` of that face, so a wall thinner
-     than a cell blocks wherever it lies in the cells. ``geometry_rays`` N > 0 also traces
-     N×N rays through every staggered cell on the scene's BVH (``lpv_gv_rays.comp``): the
-     share that hits a triangle blocks (the larger of the two is kept), so walls no RSM and
-     no camera pixel sees block too (off by default: cost, see the page).
+     than a cell blocks wherever it lies in the cells.
   4. **Propagation** (``ceil(iteration_scale · grid)`` compute steps, a memory barrier
      between dependent dispatches): each cell gathers from its 6 neighbours the flux
      through its 5 other faces, ``Ω_face · I(ω_face)``, re-emitted as a cosine lobe around the
@@ -161,8 +158,6 @@ class LPVPass(Pass):
         Param("inject_offset", 1.0, 0.0, 2.0, "a VPL is injected at its position plus this many cells along its normal (0.5 lets a surface's own light light it at fine levels)"),
         Param("splat_blocking", True, doc="the trilinear splat's weights through the geometry volume (False: it crosses thin walls sideways, two_rooms leak 0.0000 -> 0.0055 at 48 px)"),
         Param("soft_cascades", True, doc="a VPL's share in a cascade ramps over 2 cells at its border (False: in or out, a moving cascade pops)"),
-        Param("geometry_rays", 0, 0, 4, "geometry volume from the scene's triangles too: N x N rays per staggered cell (0 = only the RSM and G-buffer surfels)"),
-        Param("geometry_surfels", True, doc="geometry volume from the RSM texels and G-buffer pixels (False: from the rays only)"),
     )
     quality_ladder = ({"grid": 16, "cascades": 2}, {"grid": 24, "cascades": 3}, {"grid": 32, "cascades": 3},
                       {"grid": 40, "cascades": 3})
@@ -237,7 +232,7 @@ class LPVPass(Pass):
         self.gv_fbo.use()
         self.gv_fbo.clear(0.0, 0.0, 0.0, 0.0)
         ctx.viewport = (0, 0, G, G)
-        if use_gv and (self["geometry_surfels"] or int(self["geometry_rays"]) <= 0):
+        if use_gv:
             gvp = self._inject_program(rc, {"LPV_GV": 1}, atlas.size[0], grid)
             if self.gv_vao is None:
                 self.gv_vao = ctx.vertex_array(gvp, [])
@@ -257,20 +252,8 @@ class LPVPass(Pass):
                 set_uniform(gbp, "u_only_cascade", c)
                 self.gb_vao.render(mode=moderngl.POINTS, vertices=int(rc.width * rc.height))
         ctx.disable(moderngl.BLEND)
-        rays = int(self["geometry_rays"])
-        if use_gv and rays > 0:
-            # blockers from the triangles (walls no RSM and no G-buffer pixel sees)
-            rt = rc.scene.rt()
-            gp = rc.programs.compute("raster3d/lpv_gv_rays.comp", {**rt.defines, "RAYS": str(rays)})
-            rt.bind(gp)
-            grid.uniforms(gp)
-            self.gv.bind_to_image(0, read=True, write=True)
-            self.gvd.bind_to_image(1, read=True, write=True)
-            rc.dispatch(gp, (G + 3) // 4, (G + 3) // 4, (G * C + 3) // 4)
-            # its stores before the propagation's and the lookup's texel fetches
-            ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT | TEXTURE_FETCH_BARRIER_BIT)
         # light injection: one point per RSM texel, additive (framebuffer writes of the geometry
-        # volume are visible to this draw's texel fetches; the rays' image stores got a barrier)
+        # volume are visible to this draw's texel fetches)
         defs = {**({} if self["trilinear_injection"] else {"LPV_SPLAT_NEAREST": 1}),
                 **({} if self["soft_cascades"] else {"LPV_HARD_CASCADES": 1})}
         prog = self._inject_program(rc, defs or None, atlas.size[0], grid)

@@ -25,9 +25,9 @@
   The pattern is shared by all pixels of a frame: window ``index`` of one R2 sequence, the
   frame's index in the current accumulation (accumulation converges to the full sum over
   the disk; a moving view or light keeps window 0, so the pattern's error does not jump
-  from frame to frame). With ``filtered_vpls`` (off by default) a sample's VPL is the
-  bilinear blend of its 4 texels, so it moves continuously with the light, but a blend
-  across a depth edge is a VPL in mid-air (measured: worse on the sun-lit room). It runs at ``low_scale`` of the resolution,
+  from frame to frame). A sample's VPL is its nearest texel (a bilinear blend of 4 texels
+  would move continuously with the light, but a blend across a depth edge is a VPL in mid-air:
+  sun-lit room relMSE 0.0098 -> 0.0179). It runs at ``low_scale`` of the resolution,
   then ``RSMResolvePass`` interpolates the four nearest low-resolution samples where their
   normals and planes agree with the pixel's (at least three), and gathers again at full
   resolution where they do not (the paper's screen-space scheme).
@@ -262,7 +262,6 @@ GATHER_PARAMS = (
     Param("radius", 1.0, 0.05, 1.5, "sampling disk radius, fraction of the RSM side (1.42 = whole map)"),
     Param("min_distance", 0.1, 0.0, 10.0, "distance clamp d_min of the 1/d^4 kernel (scene units)"),
     Param("exact_weights", True, doc="weight samples by the exact inverse density 2ξ1 (default; False = the paper's ξ1², biased dark: cornell 0.81-0.86x)"),
-    Param("filtered_vpls", False, doc="bilinear VPLs (a sample moves continuously with the light; blends across depth edges: sun-lit room relMSE 0.0098 -> 0.0179); False: the nearest texel"),
     Param("pattern_windows", False, doc="each frame takes the next window of the R2 sequence (True) instead of restarting it per accumulation (see bind_pattern)"),
 )
 
@@ -277,7 +276,6 @@ def bind_rsm(rc, prog, units: Units, gather: Pass):
     set_uniform(prog, "u_disk_radius", float(gather["radius"]))
     set_uniform(prog, "u_min_distance", float(gather["min_distance"]))
     set_uniform(prog, "u_exact_weights", 1 if gather["exact_weights"] else 0)
-    set_uniform(prog, "u_filtered_vpls", 1 if gather["filtered_vpls"] else 0)
 
 
 def bind_pattern(prog, frame, gather):
@@ -288,8 +286,8 @@ def bind_pattern(prog, frame, gather):
     to frame. ``pattern_windows``: the frame's sample counter instead, so a moving view also
     walks the windows and the temporal pass averages 8 of them; that flickers more (60 moving
     frames, q0: 1.24x Cycles' frame-to-frame change against 1.08x with window 0: the
-    8-frame running mean leaves an eighth of each new window's error as flicker; before the
-    temporal pass existed a new pattern every frame measured 5.3x)."""
+    8-frame running mean leaves an eighth of each new window's error as flicker; without the
+    temporal pass a new pattern every frame measures 5.3x)."""
     idx = frame.sample if gather["pattern_windows"] else frame.index
     set_uniform(prog, "u_pattern", int(idx) & 0xFFFFFFFF)
 

@@ -277,8 +277,6 @@ CONE_PARAMS = (
     Param("side_angle", 60.0, 20.0, 70.0, "angle of the five side cones from the normal (degrees)"),
     Param("footprint_cap", 0.35, 0.0, 4.0, "diffuse cones' footprint diameter <= this x the sample's height "
           "over the receiver's plane (0 = off): coarse mips never reach back over the receiver's own surface"),
-    Param("cone_rotation", False, doc="turn the five side cones around the normal every frame (converges a "
-          "still image over frames, but flickers under motion: 60-frame Cornell 1.4x Cycles' mean step)"),
     Param("axis_box", True, doc="read each directional face at its mip's texel centre along the face's own axis "
           "(a box, not a trilinear tent, along the direction a cone crosses it: a one-voxel wall stops a cone "
           "wherever it lies in a texel; off = trilinear)"),
@@ -289,7 +287,7 @@ CONE_PARAMS = (
           "0.87x); Cornell q2 one-bounce 0.925 -> 0.928"),
     Param("opaque_radiance", True, doc="a sample's radiance weights its three faces by d^2 x opacity (the faces "
           "that occlude it show it), not by d^2 alone: the black edge-on faces of a wall crossed obliquely "
-          "(edge_opacity) no longer dim its radiance (off = weighted by d^2 alone)"),
+          "(edge_opacity) do not dim its radiance (off = weighted by d^2 alone)"),
     Param("audit_radiance", 0.0, 0.0, 1e3, "energy audit (tests): > 0 = both sides of every voxelised surface "
           "show this radiance (no lights, no bounce) and GI_IndirectDiffuse holds E/pi (albedo 1); 0 = off"),
 )
@@ -320,7 +318,7 @@ class VoxelInjectPass(Pass):
               "direction (an edge-on surface shows black at this opacity; against leaks)"),
         Param("reset_bounces", 6, 1, 16, "injection runs within the frame after a history reset (first frame, "
               "camera cut, parameter change), one bounce more each: the volume starts converged instead of "
-              "building up one bounce per frame (1 = the old build-up)"),
+              "building up one bounce per frame (1 = that build-up)"),
         Param("light_cull", True, doc="many lights (at least light_cull.MIN_CULL_LIGHTS): a voxel shades exactly "
               "the lights whose range of influence holds its centre (suns always), the others by cull_samples "
               "lights chosen by power (unbiased; off = every light at every voxel)"),
@@ -438,7 +436,6 @@ class VoxelInjectPass(Pass):
         set_uniform(prog, "u_vx_cap", float(self["footprint_cap"]))
         set_uniform(prog, "u_vx_side_angle", float(np.radians(self["side_angle"])))
         set_uniform(prog, "u_audit", float(self["audit_radiance"]))
-        set_uniform(prog, "u_rotate", 1 if self["cone_rotation"] else 0)
         set_uniform(prog, "u_vx_box_ramp", float(self["box_ramp"]))
         set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
         res[VOXELS].bind_to_storage_buffer(BINDING_RECORDS)
@@ -578,7 +575,6 @@ class VoxelTracePass(Pass):
         set_uniform(prog, "u_specular", 1 if self["specular"] else 0)
         set_uniform(prog, "u_vx_cap", float(self["footprint_cap"]))
         set_uniform(prog, "u_audit", float(self["audit_radiance"]))
-        set_uniform(prog, "u_rotate", 1 if self["cone_rotation"] else 0)
         set_uniform(prog, "u_vx_box_ramp", float(self["box_ramp"]))
         res[COLOR].bind_to_image(0, read=True, write=True)
         res[DIFFUSE].bind_to_image(1, read=False, write=True)

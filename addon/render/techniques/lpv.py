@@ -18,8 +18,6 @@ See docs/techniques/LPV.md.
 | splat_blocking | bool | the splat's weights through the geometry volume (off: it leaks through thin walls) |
 | inject_offset | 0–2 | cells along the VPL's normal where it is injected (default 1) |
 | soft_cascades | bool | a VPL's share in a cascade ramps over 2 cells at its border |
-| geometry_rays | 0–4 | N×N rays per staggered cell add the triangles' blockers (0: off) |
-| geometry_surfels | bool | blockers from the surfels (False with rays: rays only) |
 | iteration_scale | 0.05–4 | propagation steps per cell of the grid side |
 | inject_scale | 0–1 | weight of the unpropagated injected light in the result |
 | dampening | 0–1 | scale of light flowing away along the normal (0; q3 0.25) |

@@ -38,7 +38,7 @@ import numpy as np
 from ..framegraph import Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 # the BVH, light selection and their checks live in the shared component (rt_scene.SceneRT);
-# re-exported here for scripts written against the old names
+# re-exported here for scripts that import them from this module
 from ..rt_scene import check_triangle_budget, geometry_key, light_selection  # noqa: F401
 from . import Technique, register
 
@@ -69,8 +69,6 @@ class PathTracePass(Pass):
     )
     quality_ladder = ({"spp_per_frame": 1}, {"spp_per_frame": 2}, {"spp_per_frame": 4}, {"spp_per_frame": 8})
 
-    debug_pixel_positions = False  # tests: the colour output is the camera ray's in-pixel position
-
     def __init__(self, quality=None, **props):
         super().__init__(quality, **props)
         self.bvh_ms = 0.0
@@ -80,8 +78,7 @@ class PathTracePass(Pass):
         self.bvh_ms = rt.bvh_ms
         scene = rc.scene.scene
         cam = scene.camera
-        prog = rc.programs.compute("pt/pt.comp", dict(rt.defines, PT_DEBUG_PIXEL_POS=1)
-                                   if self.debug_pixel_positions else rt.defines)
+        prog = rc.programs.compute("pt/pt.comp", rt.defines)
         rt.bind(prog)
         set_uniform(prog, "u_cam_to_world", np.asarray(cam.matrix_world, np.float32))
         set_uniform(prog, "u_inv_proj", np.linalg.inv(np.asarray(cam.projection, np.float64)).astype(np.float32))

@@ -2,7 +2,7 @@
 See passes/filters.py (SVGFPass) and docs/techniques/SVGF.md.
 
 Parameters (pass ``svgf``): iterations 1–8, max_history, sigma_luminance, sigma_normal,
-sigma_depth, feedback. Debug render passes: GI_SVGF_Variance (luminance variance of the
+sigma_depth, edge_history, light_history. Debug render passes: GI_SVGF_Variance (luminance variance of the
 integrated signal), GI_SVGF_History (history length / max_history). Quality ladder: iterations 3, 4, 5, 6. Warm-up: 8 frames before an F12 render
 accumulates (the temporal history fills). Compared with: the full Cycles reference."""
 from __future__ import annotations

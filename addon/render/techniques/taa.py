@@ -5,12 +5,9 @@ session's R2 sequence (see passes/filters.py). Docs: docs/techniques/TAA.md.
 Parameters (pass ``taa``): alpha (least current-frame weight), gamma (box width in sigmas),
 max_history, input_filter/radius/young (same-surface binomial of the current frame, 5x5 by
 default), history_filter (Catmull-Rom history), history_normal/normal_motion/history_fallback (under
-motion a history tap must face like the pixel; 3x3 same-surface fallback), light_history (a light edit caps the history
-length instead of restarting it), motion_jitter/footprint/footprint_age (jitter frames that keep history; a history
-texel also keeps the other surface its footprint saw; both OFF by default: they measured worse under motion).
-recon/recon_sigma (current-frame Gaussian mix of the 3x3 samples by their jittered distance) and edge_own (own
-sample / 3x3 filter at geometric edges): OFF by default (no gain measured). Debug render pass GI_TAA_History (R: history length / max_history, G: share of
-the history moved by the clip).
+motion a history tap must face like the pixel; 3x3 same-surface fallback), turned_history/thin_neff/thin_radius
+(edge-on faces revealed by a slow pan), light_history (a light edit caps the history length instead of restarting
+it). Debug render pass GI_TAA_History (R: history length / max_history, G: share of the history moved by the clip).
 Quality ladder: alpha 0.2, 0.1, 0.1 (gamma 1), 0.05 (gamma 1). Warm-up: 8 frames."""
 from __future__ import annotations
 
