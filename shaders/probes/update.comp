@@ -12,11 +12,6 @@
 // A probe relocated last frame (state w = -1) restarts like a reset one.
 // Inactive probes (RTXGI classification) keep their stored value. Rays 0..u_fixed_rays-1
 // (RTXGI's fixed set for relocation/classification) are not blended.
-// PROBE_RELOCATE (RTXGI, the SDK's blending rules): a back-face hit enters the distance
-//   moments at a fifth of its distance (a probe partly inside geometry sees walls close by in
-//   those directions, so the visibility test trusts it less there), and a probe whose blended
-//   rays hit back faces 10 % of the time or more keeps its stored irradiance this frame (it is
-//   mostly inside geometry: its light would come through the wall).
 // With PROBE_STATS the irradiance update also writes the per-texel relative change of the
 // stored value (RTXGI's variability, the measured convergence of the warm-up).
 #include "lib/common.glsl"
@@ -68,36 +63,19 @@ void main() {
     vec3 n = oct_texel_dir(t, tile_size);
     vec3 sum = vec3(0.0);
     float wsum = 0.0;
-#if defined(PROBE_RELOCATE) && defined(UPDATE_IRRADIANCE)
-    int backfaces = 0;
-    int max_backfaces = max(1, int(0.1 * float(u_rays - u_fixed_rays)));
-#endif
     for (int r = u_fixed_rays; r < u_rays; ++r) {
         vec4 ray = texelFetch(u_ray_tex, ivec2(r, pi), 0);
         vec3 d = probe_ray_dir(r);
         float c = max(dot(n, d), 0.0);
 #ifdef UPDATE_IRRADIANCE
         if (ray.a < 0.0) {  // back face: not a surface seen from outside
-#ifdef PROBE_RELOCATE
-            if (++backfaces >= max_backfaces) {
-                imageStore(o_atlas, texel, prev);
-#ifdef PROBE_STATS
-                imageStore(o_change, texel, vec4(0.0));
-#endif
-                return;
-            }
-#endif
             continue;
         }
         sum += c * ray.rgb;
         wsum += c;
 #else
         float w = pow(c, 50.0);
-#ifdef PROBE_RELOCATE
-        float dist = min(ray.a < 0.0 ? -0.2 * ray.a : ray.a, u_max_distance);
-#else
         float dist = min(abs(ray.a), u_max_distance);
-#endif
         sum += w * vec3(dist, dist * dist, 0.0);
         wsum += w;
 #endif

@@ -325,6 +325,7 @@ class ProbeTracePass(ProbePass):
 
     def compile(self, rc):
         self.volume.counts = self.volume.initial_counts(self.props)
+        self.volume.key = None  # placed again from the scene at the next frame (counts included)
 
     def reset_history(self):
         super().reset_history()
@@ -405,7 +406,7 @@ class ProbeUpdatePass(ProbePass):
               "relative luminance change above which hysteresis drops to a quarter (fast response)"),
         Param("ramp", 16.0, 0.0, 1e4, "warm-up: hysteresis <= age / (age + ramp) after a reset"),
         Param("normal_bias", 0.3, 0.0, 1.0, "surface bias along the normal (fraction of the smallest cell side)"),
-        Param("view_bias", 0.1, 0.0, 1.0, "surface bias towards the viewer (fraction of the smallest cell side)"),
+        Param("view_bias", 0.3, 0.0, 1.0, "surface bias towards the viewer (fraction of the smallest cell side)"),
         Param("warmup", 32, 0, 1024, "frames an F12 render runs before accumulating"),
         Param("converge_threshold", 0.004, 0.0, 1.0,
               "warm-up ends when the mean relative change per frame falls below this (measured volumes)"),

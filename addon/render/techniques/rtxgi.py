@@ -5,9 +5,7 @@ DDGI's chain (ddgi.py) plus, in ``probe_state`` and the shaders of ``passes/prob
 relocation (the SDK's three cases: more than ``backface_ratio`` of the fixed rays on back
 faces: inside geometry, moved past the closest back face; a front face closer than
 ``min_frontface``: moved away along the farthest front-face direction; nothing near: back
-towards the lattice point; the offset stays inside the 0.45-cell ellipsoid); the SDK's
-blending rules (back-face hit distances at 0.2 x in the distance moments; a probe with 10 %
-or more back-face rays keeps its irradiance that frame); classification (inactive, not traced beyond the fixed rays and
+towards the lattice point; the offset stays inside the 0.45-cell ellipsoid); classification (inactive, not traced beyond the fixed rays and
 skipped by the lookup, when inside geometry or when no fixed ray meets a surface within the
 probe's cell); an optional camera-following volume that scrolls by whole cells
 (``probe_trace.follow_camera``); warm-up that ends when the probes' variability (mean
