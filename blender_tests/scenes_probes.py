@@ -22,6 +22,10 @@
   a closed box, no door); a bright lamp in room A, a dim one in room B; the camera in room B
   looks at the wall. Cycles shows room B lit by its dim lamp only: anything more is light
   leaked through the wall by probe interpolation.
+* ``doorway``: the same shell split by a 10 cm wall with a door (1 m wide, 2 m high); one
+  lamp in room A, none in room B, where the camera looks at the door. Room B gets the lamp's
+  light only through the door (a patch on its floor) and what bounces from there: transport
+  around a corner.
 
 Used by ``test_probes.py`` and ``scripts/bench_probes.py``.
 """
@@ -29,7 +33,7 @@ from __future__ import annotations
 
 import bpy
 
-SCENES = ("white_room", "furnace", "furnace_room", "two_rooms", "probe_in_box", "glossy_room")
+SCENES = ("white_room", "furnace", "furnace_room", "two_rooms", "probe_in_box", "glossy_room", "doorway")
 
 
 def _helpers():
@@ -95,8 +99,20 @@ def _two_rooms(b, mp, mw):
     b.scene.world = mw(b.n("world"), (0, 0, 0), 0.0)
 
 
+def _doorway(b, mp, mw):
+    white = mp(b.n("white"), (0.8, 0.8, 0.8), 1.0, specular=0.0)
+    b.room("shell", (-4, -2, 0), (4, 2, 3), {k: white for k in ("floor", "ceiling", "-x", "+x", "-y", "+y")})
+    # the dividing wall at x = 0, 10 cm thick, with a door y in [-0.5, 0.5], z in [0, 2]
+    b.box("wall_s", (0.1, 1.5, 3.0), white, location=(0.0, -1.25, 1.5))
+    b.box("wall_n", (0.1, 1.5, 3.0), white, location=(0.0, 1.25, 1.5))
+    b.box("lintel", (0.1, 1.0, 1.0), white, location=(0.0, 0.0, 2.5))
+    b.light("lamp_a", "POINT", (-2.0, 0.6, 2.2), energy=1000.0, shadow_soft_size=0.0)
+    b.camera((3.8, -1.8, 1.6), (0.0, 0.3, 1.0), lens=24.0)
+    b.scene.world = mw(b.n("world"), (0, 0, 0), 0.0)
+
+
 _BUILD = {"white_room": _white_room, "furnace": _furnace, "furnace_room": _furnace_room, "two_rooms": _two_rooms,
-          "probe_in_box": _probe_in_box, "glossy_room": _glossy_room}
+          "probe_in_box": _probe_in_box, "glossy_room": _glossy_room, "doorway": _doorway}
 
 
 def build(name: str, resolution: int = 48) -> bpy.types.Scene:
