@@ -56,7 +56,7 @@ from ..rt_scene import light_selection
 from .gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION
 from .light_cull import light_ranges
 from .rsm import RSM_POS, RSM_VIEWS, LightGatedGraph, MAX_RSM_VIEWS, shadow_lights
-from .screen_space import COLOR, Units, bind_frame, bind_gbuffer, camera_vectors
+from .screen_space import COLOR, GBUFFER_BOUND, Units, bind_frame, bind_gbuffer, camera_vectors
 from .shadows import ATLAS, VIEWS
 
 VOXELS, GRID, RADIANCE = "vxgi.voxels", "vxgi.grid", "vxgi.radiance"
@@ -282,7 +282,10 @@ class VoxelInjectPass(Pass):
     provides = GI
     reads = (VOXELS, GRID, RSM_POS, RSM_VIEWS, RADIANCE + "@prev")
     optional_reads = (ATLAS, VIEWS)
-    writes = (RADIANCE,)
+    # a history reset ping-pongs the injection runs through the @prev twin (see execute); each
+    # run clears level 0 by upload, then stores the occupied voxels
+    writes = (RADIANCE, RADIANCE + "@prev")
+    write_access = {RADIANCE: ("upload", "image"), RADIANCE + "@prev": ("upload", "image")}
     history_resets = frozenset({CAMERA_CUT, PARAM_CHANGE})
     params = CONE_PARAMS + (
         Param("multi_bounce", True, doc="inject last frame's indirect irradiance (and sky light) into the voxels"),
@@ -522,6 +525,7 @@ class VoxelTracePass(Pass):
     name = "vxgi_trace"
     provides = GI
     reads = (RADIANCE, GRID, COLOR, ALBEDO, NORMAL, POSITION, GEONORMAL)
+    optional_reads = GBUFFER_BOUND  # bind_gbuffer
     writes = (COLOR, DIFFUSE, GLOSSY, AO)
     declared = (Res(DIFFUSE, check="radiance"), Res(GLOSSY, check="radiance"), Res(AO, check="radiance"))
     history_resets = frozenset()
