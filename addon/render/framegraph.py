@@ -351,6 +351,10 @@ class RenderContext:
         # barrier state: name -> [writer pass, access, pending read bits (to be made visible)]
         self.sync: dict[str, list] = {}
         self._clear_fbos: dict = {}
+        # objects owned outside the graph (the GPU scene's buffers) that a pass declares it
+        # writes: name -> object; ``scene_wide``: those every pass may read undeclared
+        self.external: dict[str, object] = {}
+        self.scene_wide: set = set()
 
     @property
     def width(self) -> int:
@@ -457,13 +461,21 @@ class RenderContext:
         return self.resources[name].read()
 
     # -------------------------------------------------------------- synchronisation record
+    def register_external(self, name: str, obj, *, scene_wide: bool = False):
+        """Name an object the graph does not own (not released with the resources) so that
+        its accesses are recorded and checked; ``scene_wide``: every pass reads it (bound
+        with the scene), only its writers declare it."""
+        self.external[name] = obj
+        if scene_wide:
+            self.scene_wide.add(name)
+
     def is_buffer(self, name: str) -> bool:
         decl = self.specs.get(name, (None,))[0]
         if decl is not None:
             return decl.kind == BUFFER
         import moderngl
 
-        return isinstance(self.resources.get(name), moderngl.Buffer)
+        return isinstance(self.resources.get(name, self.external.get(name)), moderngl.Buffer)
 
     def order_access(self, names, access: str, *, extra: int = 0) -> int:
         """Issue the barrier that orders ``access`` (a read access of barriers.READ_ACCESSES,

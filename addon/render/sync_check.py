@@ -72,6 +72,7 @@ class Validator:
         # writes of the running pass: id -> [access, name, object, bits issued since]
         self.pending: dict[int, list] = {}
         self.graph = None
+        self.unnamed: dict[int, tuple] = {}  # id -> (object, pass that last wrote it), objects with no name
         self.violations: list[str] = []
         self._seen: set = set()
 
@@ -81,6 +82,9 @@ class Validator:
         rcs += [rc for rc in list(self.contexts) if rc is not self.rc]
         for rc in rcs:
             for k, v in rc.resources.items():
+                if v is obj:
+                    return k, rc
+            for k, v in rc.external.items():
                 if v is obj:
                     return k, rc
         return None, None
@@ -128,6 +132,7 @@ class Validator:
     def access(self, obj, access: str, write: bool, is_buffer: bool):
         name, rc = self.name_of(obj)
         if name is None:
+            self._unnamed(obj, access, write, is_buffer)
             return
         p = self.pass_
         who = p.name if p is not None else OUTSIDE
@@ -153,9 +158,31 @@ class Validator:
                 if prev is None or access in INCOHERENT_WRITES or prev[0] not in INCOHERENT_WRITES:
                     self.pending[id(obj)] = [access, name, obj, 0]
 
+    def _unnamed(self, obj, access, write, is_buffer):
+        """An object no resource name refers to: private to one pass, unless a pass uses what
+        another pass wrote (an object shared behind the graph's back)."""
+        p = self.pass_
+        if p is None:
+            return
+        rec = self.unnamed.get(id(obj))
+        if rec is not None and rec[0] is obj and rec[1] != p.name:
+            kind = "buffer" if is_buffer else "texture"
+            self._report((p.name, rec[1], id(obj)),
+                         f"sync: pass '{p.name}' uses a {kind} ({READ_ACCESS_NAMES.get(access, access)}) that pass "
+                         f"'{rec[1]}' wrote, and no declared resource names it")
+        if write:
+            self.unnamed[id(obj)] = (obj, p.name)
+
+    def declared_writes(self, p, name) -> tuple:
+        decl = self.graph.declaration(name) if self.graph is not None else None
+        try:
+            return p.write_accesses(name, decl)
+        except Exception:
+            return ()
+
     def _check_declared(self, p, rc, name, access, write, is_buffer):
         declared = set(p.reads) | set(p.optional_reads) | set(p.writes) | set(getattr(p, "external", ()))
-        if name not in declared:
+        if name not in declared and not (not write and name in rc.scene_wide):
             self._report((p.name, name, "undeclared"),
                          f"sync: pass '{p.name}' uses '{name}' ({(WRITE_ACCESS_NAMES if write else READ_ACCESS_NAMES).get(access, access)}) "
                          f"but does not declare it (reads, optional_reads, writes or external)")
@@ -231,7 +258,8 @@ def install():
     def storage(self, *a, **k):
         V.access(self, "storage", False, True)
         p = V.pass_
-        if p is not None and V.name_of(self)[0] in p.writes:
+        name = V.name_of(self)[0]
+        if p is not None and name in p.writes and "storage" in V.declared_writes(p, name):
             V.access(self, "storage", True, True)
     wrap(B, "bind_to_storage_buffer", storage)
     wrap(B, "bind_to_uniform_block", lambda self, *a, **k: V.access(self, "uniform", False, True))

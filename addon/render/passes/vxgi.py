@@ -60,6 +60,9 @@ from .screen_space import COLOR, GBUFFER_BOUND, Units, bind_frame, bind_gbuffer,
 from .shadows import ATLAS, VIEWS
 
 VOXELS, GRID, RADIANCE = "vxgi.voxels", "vxgi.grid", "vxgi.radiance"
+# the occupied-voxel list (count + indices, appended by the voxelisation), the injection's
+# light-culling table and its direct-light store (a reset frame's runs share it)
+VX_LIST, VX_CULL, VX_DIRECT = "vxgi.list", "vxgi.cull", "vxgi.direct"
 DIFFUSE, GLOSSY, AO, DEBUG = "vxgi.diffuse", "vxgi.glossy", "vxgi.ao", "vxgi.debug"
 VX_REC = 1 + 6 * 8  # words per voxel record: bucket mask + 6 orientation buckets (shaders/vxgi/common.glsl)
 MAX_CASCADES = 4
@@ -168,10 +171,13 @@ class VoxelizePass(Pass):
     name = "vxgi_voxelize"
     kind = "raster"
     provides = GI
-    writes = (VOXELS, GRID)
+    writes = (VOXELS, GRID, VX_LIST)
     declared = (Res(VOXELS, kind=BUFFER, managed=False, check="none"),
-                Res(GRID, kind=HOST, managed=False, check="none"))
-    write_access = {VOXELS: "storage"}
+                Res(GRID, kind=HOST, managed=False, check="none"),
+                Res(VX_LIST, kind=BUFFER, dtype="u4", managed=False, check="none"))
+    # records and list by shader-storage stores from the fragment shader; the list's count
+    # is reset by an upload first
+    write_access = {VOXELS: "storage", VX_LIST: ("upload", "storage")}
     history_resets = frozenset()
     params = (
         Param("resolution", 64, 8, 256, "voxels per side of one cascade (a multiple of 8 keeps 4 mip levels)"),
@@ -213,13 +219,13 @@ class VoxelizePass(Pass):
         self.grid = VoxelGrid(voxel_cascades(rc.scene.scene, frame, n, C, float(self["voxel_size"]), snap=SNAP), n,
                               int(math.log2(SNAP)) + 1 if self["aligned_mips"] else 0)
         rc.resources[VOXELS] = self.buf
+        rc.resources[VX_LIST] = self.list
         rc.resources[GRID] = self.grid
         prog = rc.programs.program("vxgi/voxelize.vert", "vxgi/voxelize.frag", geometry="vxgi/voxelize.geom")
         rc.scene.bind(prog)
         self.grid.uniforms(prog)
         set_uniform(prog, "u_thickness", float(self["thickness"]))
-        # the list of occupied voxels starts empty (after last frame's shader reads of it)
-        rc.ctx.memory_barrier(BUFFER_UPDATE_BARRIER_BIT)
+        # the list of occupied voxels starts empty (the graph orders it after last frame's stores)
         self.list.write(np.zeros(1, np.uint32).tobytes())
         self.buf.bind_to_storage_buffer(BINDING_RECORDS)
         self.list.bind_to_storage_buffer(BINDING_LIST)
@@ -280,12 +286,16 @@ def vx_defines(p) -> dict:
 class VoxelInjectPass(Pass):
     name = "vxgi_inject"
     provides = GI
-    reads = (VOXELS, GRID, RSM_POS, RSM_VIEWS, RADIANCE + "@prev")
+    reads = (VOXELS, VX_LIST, GRID, RSM_POS, RSM_VIEWS, RADIANCE + "@prev")
     optional_reads = (ATLAS, VIEWS)
     # a history reset ping-pongs the injection runs through the @prev twin (see execute); each
-    # run clears level 0 by upload, then stores the occupied voxels
-    writes = (RADIANCE, RADIANCE + "@prev")
-    write_access = {RADIANCE: ("upload", "image"), RADIANCE + "@prev": ("upload", "image")}
+    # run clears level 0 by upload, then stores the occupied voxels. The last run clears the
+    # voxel records it read (shader-storage stores) for the next frame's voxelisation.
+    writes = (RADIANCE, RADIANCE + "@prev", VOXELS, VX_CULL, VX_DIRECT)
+    write_access = {RADIANCE: ("upload", "image"), RADIANCE + "@prev": ("upload", "image"), VOXELS: "storage",
+                    VX_CULL: "upload", VX_DIRECT: "storage"}
+    # the list's count is read back (a reset frame sizes the direct store), then read by the shader
+    read_access = {VX_LIST: ("readback", "storage")}
     history_resets = frozenset({CAMERA_CUT, PARAM_CHANGE})
     params = CONE_PARAMS + (
         Param("multi_bounce", True, doc="inject last frame's indirect irradiance (and sky light) into the voxels"),
@@ -355,8 +365,8 @@ class VoxelInjectPass(Pass):
     def _direct_store(self, rc) -> int:
         """A reset frame's direct-light store, sized to this frame's occupied voxels (read back:
         a reset frame runs the injection several times anyway); returns its capacity in entries."""
-        rc.ctx.memory_barrier(BUFFER_UPDATE_BARRIER_BIT)  # the voxelisation's list appends -> the read-back
-        count = int(np.frombuffer(self.voxelize.list.read(size=4), np.uint32)[0])
+        # the graph ordered the read-back after the voxelisation's list appends (read_access)
+        count = int(np.frombuffer(rc.resources[VX_LIST].read(size=4), np.uint32)[0])
         self.occupied = count
         entry = DIRECT_FLOATS * 4
         cap = min(max(count, 1), MAX_DIRECT_BYTES // entry)
@@ -369,7 +379,9 @@ class VoxelInjectPass(Pass):
 
     def resources(self):
         v = self.voxelize
-        return (radiance_decl(int(v["resolution"]), int(v["cascades"])),)
+        return (radiance_decl(int(v["resolution"]), int(v["cascades"])),
+                Res(VX_CULL, kind=BUFFER, managed=False, check="none"),
+                Res(VX_DIRECT, kind=BUFFER, managed=False, check="none"))
 
     def reset_history(self):
         super().reset_history()
@@ -419,8 +431,10 @@ class VoxelInjectPass(Pass):
         set_uniform(prog, "u_vx_box_ramp", float(self["box_ramp"]))
         set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
         res[VOXELS].bind_to_storage_buffer(BINDING_RECORDS)
-        self.voxelize.list.bind_to_storage_buffer(BINDING_LIST)
+        res[VX_LIST].bind_to_storage_buffer(BINDING_LIST)
         cull = self._cull_table(rc)
+        if self.cull_buf is not None:
+            res[VX_CULL] = self.cull_buf
         set_uniform(prog, "u_cull", 1 if cull else 0)
         set_uniform(prog, "u_cull_samples", int(self["cull_samples"]))
         self.cull_buf.bind_to_storage_buffer(BINDING_CULL)
@@ -447,6 +461,7 @@ class VoxelInjectPass(Pass):
         self.direct_entries = cap
         if self.direct_buf is None:
             self.direct_buf = rc.ctx.buffer(reserve=DIRECT_FLOATS * 4)
+        res[VX_DIRECT] = self.direct_buf
         self.direct_buf.bind_to_storage_buffer(BINDING_DIRECT)
         set_uniform(prog, "u_direct_capacity", int(cap))
         for k in range(runs):
