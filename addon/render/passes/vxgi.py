@@ -48,7 +48,7 @@ import math
 
 import numpy as np
 
-from ..framegraph import (BUFFER, BUFFER_UPDATE_BARRIER_BIT, CAMERA_CUT, HOST, PARAM_CHANGE,
+from ..framegraph import (BUFFER, CAMERA_CUT, HOST, PARAM_CHANGE,
                           SHADER_IMAGE_ACCESS_BARRIER_BIT, SHADER_STORAGE_BARRIER_BIT, TEX3D,
                           TEXTURE_FETCH_BARRIER_BIT, TEXTURE_UPDATE_BARRIER_BIT, Effect, Param, Pass, Res)
 from ..gpu_scene import set_uniform
@@ -487,8 +487,10 @@ class VoxelInjectPass(Pass):
                                       | SHADER_STORAGE_BARRIER_BIT)
                 build_mips(rc, src, grid)
                 rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT | TEXTURE_FETCH_BARRIER_BIT)
-            # clear level 0 (what was stored in it two frames ago), then write the occupied voxels
-            rc.ctx.memory_barrier(TEXTURE_UPDATE_BARRIER_BIT)
+            # clear level 0 (what was stored in it two frames ago), then write the occupied voxels;
+            # the first run's upload is ordered by the graph (write_access), a later run's here
+            if k > 0:
+                rc.ctx.memory_barrier(TEXTURE_UPDATE_BARRIER_BIT)  # in-pass: after the run two back stored it
             dst.write(self.zeros)
             dst.bind_to_image(0, read=False, write=True, level=0)
             rc.dispatch(prog, (n * n * n * C + 255) // 256)
@@ -527,7 +529,7 @@ def build_mips(rc, tex, grid: VoxelGrid):
     mip = rc.programs.compute("vxgi/mip.comp")
     set_uniform(mip, "u_cascades", C)
     for k in range(grid.levels - 1):
-        if k > 0:
+        if k > 0:  # in-pass: level k was stored by the last dispatch
             rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT | TEXTURE_FETCH_BARRIER_BIT)
         nd = n >> (k + 1)
         tex.bind_to_image(0, read=False, write=True, level=k + 1)
