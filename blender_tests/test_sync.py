@@ -221,6 +221,49 @@ def test_mixed_pass_gets_the_framebuffer_barrier_next_frame(validating):
     assert found == []
 
 
+def test_private_object_across_frames_is_followed(validating):
+    """A pass-owned texture (no resource name) cleared through a framebuffer after the last
+    frame's image stores: reported until the texture is declared, then the graph orders it."""
+    class Private(Pass):
+        name = "private"
+        writes = ("y",)
+        declared = (Res("y"),)
+        always = True
+
+        def compile(self, rc):
+            self.tex = rc.ctx.texture(rc.size, 4, dtype="f4")
+            self.fbo = rc.ctx.framebuffer(color_attachments=[self.tex])
+
+        def execute(self, rc, frame):
+            self.fbo.use()
+            self.fbo.clear(0.0, 0.0, 0.0, 0.0)
+            self.tex.bind_to_image(0, read=False, write=True)
+            rc.dispatch(_prog(rc, FILL_SRC), *rc.groups(8))
+            rc.ctx.memory_barrier(barriers.TEXTURE_FETCH_BARRIER_BIT)  # in-pass: the copy fetches it
+            prog = _prog(rc, DOUBLE_SRC)
+            self.tex.use(1)
+            prog["u_x"].value = 1
+            rc.resources["y"].bind_to_image(0, read=False, write=True)
+            rc.dispatch(prog, *rc.groups(8))
+
+    class Declared(Private):
+        kind = "mixed"
+        writes = ("y", "private.tex")
+        declared = (Res("y"), Res("private.tex", managed=False))
+        write_access = {"y": "image", "private.tex": ("framebuffer", "image")}
+
+        def execute(self, rc, frame):
+            rc.resources["private.tex"] = self.tex
+            super().execute(rc, frame)
+
+    found, _ = _frames([Private()])
+    assert any("pass 'private' accesses '<unnamed texture of pass private>' by framebuffer draw after 'private' "
+               "wrote it by image store, with no FRAMEBUFFER barrier" in f for f in found), found
+    found, y = _frames([Declared()], n=3)
+    assert found == []
+    assert np.allclose(y[..., 0], 2.0 * (1.0 + np.arange(11))[None, :])
+
+
 def test_clear_resource_is_ordered_and_recorded(validating):
     def job():
         ctx = get_gl().ctx
@@ -239,6 +282,28 @@ def test_clear_resource_is_ordered_and_recorded(validating):
     rec, found = get_gl().call(job)
     assert rec[:2] == ["graph", "upload"]
     assert found == []
+
+
+def test_clear_behind_the_graphs_back_is_named(validating):
+    """A history texture cleared with its own framebuffer after an image store (not through
+    rc.clear_resource): no FRAMEBUFFER barrier, and the graph's record would be stale."""
+    def job():
+        ctx = get_gl().ctx
+        rc = RenderContext(ctx, ProgramCache(ctx), None, (8, 8))
+        g = FrameGraph([Fill(), Double()])
+        g.plan(set())
+        g.compile(rc)
+        try:
+            g.execute(rc, FrameState(), timers=False)
+            fbo = ctx.framebuffer(color_attachments=[rc.resources["x"]])
+            fbo.clear(5.0, 0.0, 0.0, 0.0)
+            fbo.release()
+            return sync_check.VALIDATOR.take()
+        finally:
+            rc.resources.release()
+    found = get_gl().call(job)
+    assert any("'<outside the passes>' accesses 'x' by framebuffer draw after 'fill' wrote it by image store" in f
+               for f in found), found
 
 
 def test_barrier_bits_follow_writer_and_reader():

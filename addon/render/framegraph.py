@@ -12,10 +12,10 @@ The pass contract (docs/ARCHITECTURE.md has the full table):
   depth or buffer; format; size relative to the frame (optionally scaled by a parameter) or
   absolute; transient or ``history`` (double-buffered by the graph). The graph allocates
   them; ``rc.resources[name]`` is this frame's object.
-* ``kind``: ``"compute"`` (writes with imageStore / SSBO stores) or ``"raster"`` (writes
-  through framebuffer attachments); ``write_access`` overrides this per resource (a raster
-  voxeliser writes a 3D image with ``"image"``). The graph derives the memory barriers from
-  it.
+* ``kind``: ``"compute"`` (writes with imageStore / SSBO stores), ``"raster"`` (writes
+  through framebuffer attachments) or ``"mixed"``; ``write_access`` / ``read_access`` say per
+  resource how it is written and read (barriers.py lists the accesses). The graph derives
+  the memory barriers from them. ``external``: objects the graph does not own.
 * ``history_resets``: which events invalidate the pass's history: ``camera_cut``,
   ``param_change`` and the scene edits ``geometry``, ``transforms``, ``materials``,
   ``lights``, ``textures`` (``SCENE_EDIT`` is all five). The graph applies them: it clears the
@@ -30,7 +30,10 @@ producers, and orders them topologically. Declaration order only decides the ver
 resource written by several passes (``color`` written by DIRECT, then added to by each
 composite); a read with no producer, or a cycle, is a ``PlanError`` naming the pass.
 Execution (``FrameGraph.execute``) inserts ``glMemoryBarrier`` between an incoherent writer
-(image or storage stores) and every later reader or writer, recorded in ``barrier_log``.
+(image or storage stores) and every later access, with the bits the access type needs
+(barriers.required_bits), recorded in ``barrier_log``; clears and uploads through
+``RenderContext`` are ordered and recorded the same way. ``GI_PREVIEW_VALIDATE_SYNC=1``
+checks the declarations and barriers against what the passes do (sync_check).
 With ``GI_PREVIEW_VALIDATE=1`` every resource a pass writes is read back and checked for
 NaN, Inf and (for radiance) negative values; the first bad value raises
 ``ValidationError`` naming the pass and the resource.

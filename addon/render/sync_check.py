@@ -131,12 +131,15 @@ class Validator:
 
     def access(self, obj, access: str, write: bool, is_buffer: bool):
         name, rc = self.name_of(obj)
-        if name is None:
-            self._unnamed(obj, access, write, is_buffer)
-            return
         p = self.pass_
         who = p.name if p is not None else OUTSIDE
-        if p is not None:
+        if name is None:
+            self._unnamed(obj, access, write, is_buffer)
+            if p is None:
+                return  # objects outside the passes and the graph's resources: not followed
+            # a pass's own object: its accesses across frames are checked like a resource's
+            name = f"<unnamed {'buffer' if is_buffer else 'texture'} of pass {p.name}>"
+        elif p is not None:
             self._check_declared(p, rc, name, access, write, is_buffer)
         st = self.state.get(id(obj))
         # accesses after this pass's own writes of the frame are the pass's to order
