@@ -3,7 +3,7 @@
 Tiny passes written for the test, each broken in one way the validation must name (a write
 of an undeclared resource, a read after an image store with the graph's barrier removed, a
 framebuffer draw in a pass declared ``kind="compute"``), next to the correct version that
-must run clean; then every registered technique renders a few frames at 24 px with the
+must run clean; then every registered technique renders a few frames at 20 px on two demo scenes with the
 validation on and no finding.
 """
 from __future__ import annotations
@@ -318,11 +318,12 @@ def test_barrier_bits_follow_writer_and_reader():
 
 
 # ---------------------------------------------------------------- every technique
-@pytest.fixture(scope="module")
-def cornell_sd():
+@pytest.fixture(scope="module", params=["cornell", "sunlit_room"])
+def demo_sd(request):
+    """An area-lit box, and a sun-lit room with a world (sky paths, world rays)."""
     import bpy
 
-    sc = demo_scenes.build_demo("cornell", resolution=20)
+    sc = demo_scenes.build_demo(request.param, resolution=20)
     sd = export_scene(reference.evaluated_depsgraph(sc))
     yield sd
     bpy.data.scenes.remove(sc)
@@ -333,17 +334,17 @@ def _technique_ids():
 
 
 @pytest.mark.parametrize("tech", _technique_ids())
-def test_technique_renders_without_sync_findings(cornell_sd, tech, validating):
+def test_technique_renders_without_sync_findings(demo_sd, tech, validating):
     key = f"test_sync_{tech}"
-    moved = copy.deepcopy(cornell_sd)
+    moved = copy.deepcopy(demo_sd)
     moved.camera.matrix_world = moved.camera.matrix_world.copy()
     moved.camera.matrix_world[0, 3] += 0.05
     try:
-        session.render(cornell_sd, tech, 0, 2, session=key)
+        session.render(demo_sd, tech, 0, 2, session=key)
         # frames keeping history from a moved camera: what a pass caches while the view is
         # still is recomputed, after last frame's writes
         session.render(moved, tech, 0, 1, keep_history=True, session=key)
-        session.render(cornell_sd, tech, 0, 1, keep_history=True, session=key)
+        session.render(demo_sd, tech, 0, 1, keep_history=True, session=key)
     finally:
         fut = session.release_session(key)
         if fut is not None:

@@ -72,7 +72,8 @@ class Validator:
         # writes of the running pass: id -> [access, name, object, bits issued since]
         self.pending: dict[int, list] = {}
         self.graph = None
-        self.unnamed: dict[int, tuple] = {}  # id -> (object, pass that last wrote it), objects with no name
+        # objects with no name: id -> (object, pass that last wrote it, its render context)
+        self.unnamed: dict[int, tuple] = {}
         self.violations: list[str] = []
         self._seen: set = set()
 
@@ -168,13 +169,15 @@ class Validator:
         if p is None:
             return
         rec = self.unnamed.get(id(obj))
-        if rec is not None and rec[0] is obj and rec[1] != p.name:
+        # within one render context: scene data one session's pass uploads on first use may
+        # serve another session's passes
+        if rec is not None and rec[0] is obj and rec[1] != p.name and rec[2] is self.rc:
             kind = "buffer" if is_buffer else "texture"
             self._report((p.name, rec[1], id(obj)),
                          f"sync: pass '{p.name}' uses a {kind} ({READ_ACCESS_NAMES.get(access, access)}) that pass "
                          f"'{rec[1]}' wrote, and no declared resource names it")
         if write:
-            self.unnamed[id(obj)] = (obj, p.name)
+            self.unnamed[id(obj)] = (obj, p.name, self.rc)
 
     def declared_writes(self, p, name) -> tuple:
         decl = self.graph.declaration(name) if self.graph is not None else None
