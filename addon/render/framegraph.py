@@ -12,10 +12,10 @@ The pass contract (docs/ARCHITECTURE.md has the full table):
   depth or buffer; format; size relative to the frame (optionally scaled by a parameter) or
   absolute; transient or ``history`` (double-buffered by the graph). The graph allocates
   them; ``rc.resources[name]`` is this frame's object.
-* ``kind``: ``"compute"`` (writes with imageStore / SSBO stores) or ``"raster"`` (writes
-  through framebuffer attachments); ``write_access`` overrides this per resource (a raster
-  voxeliser writes a 3D image with ``"image"``). The graph derives the memory barriers from
-  it.
+* ``kind``: ``"compute"`` (writes with imageStore / SSBO stores), ``"raster"`` (writes
+  through framebuffer attachments) or ``"mixed"``; ``write_access`` / ``read_access`` say per
+  resource how it is written and read (barriers.py lists the accesses). The graph derives
+  the memory barriers from them. ``external``: objects the graph does not own.
 * ``history_resets``: which events invalidate the pass's history: ``camera_cut``,
   ``param_change`` and the scene edits ``geometry``, ``transforms``, ``materials``,
   ``lights``, ``textures`` (``SCENE_EDIT`` is all five). The graph applies them: it clears the
@@ -30,7 +30,10 @@ producers, and orders them topologically. Declaration order only decides the ver
 resource written by several passes (``color`` written by DIRECT, then added to by each
 composite); a read with no producer, or a cycle, is a ``PlanError`` naming the pass.
 Execution (``FrameGraph.execute``) inserts ``glMemoryBarrier`` between an incoherent writer
-(image or storage stores) and every later reader or writer, recorded in ``barrier_log``.
+(image or storage stores) and every later access, with the bits the access type needs
+(barriers.required_bits), recorded in ``barrier_log``; clears and uploads through
+``RenderContext`` are ordered and recorded the same way. ``GI_PREVIEW_VALIDATE_SYNC=1``
+checks the declarations and barriers against what the passes do (sync_check).
 With ``GI_PREVIEW_VALIDATE=1`` every resource a pass writes is read back and checked for
 NaN, Inf and (for radiance) negative values; the first bad value raises
 ``ValidationError`` naming the pass and the resource.
@@ -46,6 +49,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import sync_check
 from .result import SkippedPass
 
 log = logging.getLogger(__name__)
@@ -77,35 +81,13 @@ SCENE_EDIT = frozenset(SCENE_EDITS)
 ALL_EVENTS = frozenset({CAMERA_CUT, PARAM_CHANGE}) | SCENE_EDIT
 PREV = "@prev"  # suffix: last frame's value of a history resource
 
-# ---------------------------------------------------------------- GL barrier bits (glMemoryBarrier)
-VERTEX_ATTRIB_ARRAY_BARRIER_BIT = 0x0001
-ELEMENT_ARRAY_BARRIER_BIT = 0x0002
-UNIFORM_BARRIER_BIT = 0x0004
-TEXTURE_FETCH_BARRIER_BIT = 0x0008
-SHADER_IMAGE_ACCESS_BARRIER_BIT = 0x0020
-COMMAND_BARRIER_BIT = 0x0040
-PIXEL_BUFFER_BARRIER_BIT = 0x0080
-TEXTURE_UPDATE_BARRIER_BIT = 0x0100
-BUFFER_UPDATE_BARRIER_BIT = 0x0200
-FRAMEBUFFER_BARRIER_BIT = 0x0400
-SHADER_STORAGE_BARRIER_BIT = 0x2000
-
-BARRIER_NAMES = {
-    VERTEX_ATTRIB_ARRAY_BARRIER_BIT: "VERTEX_ATTRIB_ARRAY", ELEMENT_ARRAY_BARRIER_BIT: "ELEMENT_ARRAY",
-    UNIFORM_BARRIER_BIT: "UNIFORM", TEXTURE_FETCH_BARRIER_BIT: "TEXTURE_FETCH",
-    SHADER_IMAGE_ACCESS_BARRIER_BIT: "SHADER_IMAGE_ACCESS", COMMAND_BARRIER_BIT: "COMMAND",
-    PIXEL_BUFFER_BARRIER_BIT: "PIXEL_BUFFER", TEXTURE_UPDATE_BARRIER_BIT: "TEXTURE_UPDATE",
-    BUFFER_UPDATE_BARRIER_BIT: "BUFFER_UPDATE", FRAMEBUFFER_BARRIER_BIT: "FRAMEBUFFER",
-    SHADER_STORAGE_BARRIER_BIT: "SHADER_STORAGE",
-}
-# what a later reader of a resource needs after incoherent (image / storage) writes
-TEXTURE_READ_BITS = TEXTURE_FETCH_BARRIER_BIT | SHADER_IMAGE_ACCESS_BARRIER_BIT
-BUFFER_READ_BITS = (SHADER_STORAGE_BARRIER_BIT | UNIFORM_BARRIER_BIT | VERTEX_ATTRIB_ARRAY_BARRIER_BIT
-                    | ELEMENT_ARRAY_BARRIER_BIT | COMMAND_BARRIER_BIT)
-
-
-def barrier_names(bits: int) -> list[str]:
-    return [n for b, n in BARRIER_NAMES.items() if bits & b]
+# ---------------------------------------------------------------- GL barrier bits (one table: barriers.py)
+from .barriers import (  # noqa: E402,F401  (re-exported: passes import the bits from here)
+    ALL_BARRIER_BITS, BARRIER_NAMES, BUFFER_READ_BITS, BUFFER_UPDATE_BARRIER_BIT, COMMAND_BARRIER_BIT,
+    ELEMENT_ARRAY_BARRIER_BIT, FRAMEBUFFER_BARRIER_BIT, INCOHERENT_WRITES, PIXEL_BUFFER_BARRIER_BIT,
+    READ_ACCESS_NAMES, SHADER_IMAGE_ACCESS_BARRIER_BIT, SHADER_STORAGE_BARRIER_BIT, TEXTURE_FETCH_BARRIER_BIT,
+    TEXTURE_READ_BITS, TEXTURE_UPDATE_BARRIER_BIT, UNIFORM_BARRIER_BIT, VERTEX_ATTRIB_ARRAY_BARRIER_BIT,
+    WRITE_ACCESS_NAMES, barrier_names, required_bits)
 
 
 # ---------------------------------------------------------------- resources
@@ -178,13 +160,21 @@ class Pass:
     ``execute`` (and ``compile`` for objects they own besides declared resources)."""
 
     name: str = "pass"
-    kind: str = "compute"  # "compute" | "raster": how `writes` are written (barriers)
+    # "compute" (writes with image / storage stores), "raster" (writes through framebuffer
+    # attachments) or "mixed" (both: every written resource is named in write_access)
+    kind: str = "compute"
     provides: frozenset = frozenset()
     reads: tuple = ()
     optional_reads: tuple = ()  # used if some running pass writes them (e.g. shadows)
     writes: tuple = ()
+    external: tuple = ()  # objects owned outside the graph that the pass uses (registered in rc.resources)
     declared: tuple = ()  # of Res: typed declarations of written resources (see resources())
-    write_access: dict = {}  # resource -> "image" | "storage" | "framebuffer" | "host"
+    # resource -> how the pass writes it: "image" | "storage" | "framebuffer" | "upload" | "host",
+    # or a tuple of these in the order the pass does them (clear by framebuffer, then image stores)
+    write_access: dict = {}
+    # resource -> how the pass reads it (barriers.READ_ACCESSES), or a tuple; default: a
+    # texture is fetched or image-loaded, a buffer read as storage / uniform / vertex / indirect
+    read_access: dict = {}
     history_resets: frozenset = ALL_EVENTS  # events that invalidate this pass's history
     warmup_frames: int = 0  # frames of state convergence before F12 accumulates
     params: tuple = ()  # of Param
@@ -209,15 +199,34 @@ class Pass:
     def history(self) -> tuple:
         return tuple(r.name for r in self.resources() if r.history)
 
-    def access(self, name: str, decl: "Res | None") -> str:
-        """How this pass writes ``name``: image, storage, framebuffer or host."""
+    def write_accesses(self, name: str, decl: "Res | None") -> tuple:
+        """How this pass writes ``name``, in order: image, storage, framebuffer, upload or host."""
         if name in self.write_access:
-            return self.write_access[name]
+            a = self.write_access[name]
+            return (a,) if isinstance(a, str) else tuple(a)
         if decl is not None and decl.kind == HOST:
-            return "host"
+            return ("host",)
+        if self.kind == "mixed":
+            raise PlanError(f"pass '{self.name}' is kind='mixed' but does not say in write_access how it "
+                            f"writes '{name}'")
         if decl is not None and decl.kind == BUFFER:
-            return "storage" if self.kind == "compute" else "host"
-        return "image" if self.kind == "compute" else "framebuffer"
+            return ("storage",) if self.kind == "compute" else ("upload",)
+        return ("image",) if self.kind == "compute" else ("framebuffer",)
+
+    def access(self, name: str, decl: "Res | None") -> str:
+        """The last way this pass writes ``name`` (what a later reader waits on)."""
+        return self.write_accesses(name, decl)[-1]
+
+    def read_accesses(self, name: str, decl: "Res | None") -> tuple:
+        """How this pass reads ``name`` (barriers.READ_ACCESSES)."""
+        a = self.read_access.get(name, self.read_access.get(_base(name)))
+        if a is not None:
+            return (a,) if isinstance(a, str) else tuple(a)
+        if decl is not None and decl.kind == HOST:
+            return ("host",)
+        if decl is not None and decl.kind == BUFFER:
+            return ("storage", "uniform", "vertex", "index", "indirect")
+        return ("texture", "image")
 
     def converged(self, rc) -> bool | None:
         """Measured convergence for the warm-up (None = count ``warmup_frames``)."""
@@ -345,6 +354,10 @@ class RenderContext:
         # barrier state: name -> [writer pass, access, pending read bits (to be made visible)]
         self.sync: dict[str, list] = {}
         self._clear_fbos: dict = {}
+        # objects owned outside the graph (the GPU scene's buffers) that a pass declares it
+        # writes: name -> object; ``scene_wide``: those every pass may read undeclared
+        self.external: dict[str, object] = {}
+        self.scene_wide: set = set()
 
     @property
     def width(self) -> int:
@@ -396,25 +409,37 @@ class RenderContext:
         if s_prev is not None:
             self.sync[name] = s_prev
 
-    def clear_resource(self, name: str, value=(0.0, 0.0, 0.0, 0.0)):
-        """Fill a texture or buffer with ``value`` (history reset)."""
+    def clear_resource(self, name: str, value=(0.0, 0.0, 0.0, 0.0), *, by: str = "graph"):
+        """Fill a texture or buffer with ``value`` (history reset). The clear is ordered after
+        the resource's last incoherent write and recorded as its last write."""
         obj = self.resources.get(name)
         if obj is None:
             return
         decl = self.specs.get(name, (None,))[0]
         kind = decl.kind if decl is not None else TEX2D
-        if kind == BUFFER:
-            obj.clear()
+        if kind == HOST:
             return
+        with _graph_op():
+            done = self._clear(name, obj, kind, value)
+        if done:
+            self.record_write([name], "upload", by)
+
+    def _clear(self, name, obj, kind, value):
+        if kind == BUFFER:
+            self.order_access([name], "upload")
+            obj.clear()
+            return True
         if kind == TEX2D and getattr(obj, "dtype", "f4").startswith("f"):
+            self.order_access([name], "framebuffer")
             fbo = self._clear_fbos.get(id(obj))
             if fbo is None:
                 fbo = self.ctx.framebuffer(color_attachments=[obj])
                 self._clear_fbos[id(obj)] = fbo
             v = tuple(value) + (0.0,) * (4 - len(value))
             fbo.clear(*v[:4])
-            return
+            return True
         if kind in (TEX2D, TEX2D_ARRAY, TEX3D):
+            self.order_access([name], "upload")
             comps = obj.components
             dt = {"f1": np.uint8, "f2": np.float16, "f4": np.float32, "u4": np.uint32, "i4": np.int32}.get(
                 obj.dtype, np.float32)
@@ -422,6 +447,70 @@ class RenderContext:
             arr = np.empty(shape, dt)
             arr[...] = np.asarray(tuple(value)[:comps] + (0,) * max(0, comps - len(value)), dt)
             obj.write(arr.tobytes())
+            return True
+        return False
+
+    def upload(self, name: str, data: bytes, *, by: str = "graph"):
+        """Write ``data`` into the resource ``name`` from the CPU, ordered after its last
+        incoherent write and recorded as its last write."""
+        with _graph_op():
+            self.order_access([name], "upload")
+            self.resources[name].write(data)
+        self.record_write([name], "upload", by)
+
+    def read_back(self, name: str) -> bytes:
+        """The bytes of resource ``name``, after its last incoherent write is visible."""
+        self.order_access([name], "readback")
+        return self.resources[name].read()
+
+    # -------------------------------------------------------------- synchronisation record
+    def register_external(self, name: str, obj, *, scene_wide: bool = False):
+        """Name an object the graph does not own (not released with the resources) so that
+        its accesses are recorded and checked; ``scene_wide``: every pass reads it (bound
+        with the scene), only its writers declare it."""
+        self.external[name] = obj
+        if scene_wide:
+            self.scene_wide.add(name)
+
+    def is_buffer(self, name: str) -> bool:
+        decl = self.specs.get(name, (None,))[0]
+        if decl is not None:
+            return decl.kind == BUFFER
+        import moderngl
+
+        return isinstance(self.resources.get(name, self.external.get(name)), moderngl.Buffer)
+
+    def order_access(self, names, access: str, *, extra: int = 0) -> int:
+        """Issue the barrier that orders ``access`` (a read access of barriers.READ_ACCESSES,
+        or a write access) to ``names`` after their last recorded incoherent writes; bits
+        already issued since are not repeated. Returns the bits issued."""
+        need = 0
+        for n in names:
+            st = self.sync.get(n)
+            if st is None:
+                continue
+            is_buf = self.is_buffer(n)
+            bits = required_bits(st[1], access, is_buf)
+            if access in INCOHERENT_WRITES:  # an incoherent write after earlier accesses (WAW, WAR)
+                bits |= SHADER_STORAGE_BARRIER_BIT if is_buf else SHADER_IMAGE_ACCESS_BARRIER_BIT
+            bits |= extra if st[1] in INCOHERENT_WRITES else 0
+            missing = bits & ~st[2]
+            need |= missing
+        if need:
+            self.ctx.memory_barrier(need)
+            self.barriers_issued(need)
+        return need
+
+    def barriers_issued(self, bits: int):
+        """Bits issued (by the graph or inside a pass): every pending write they cover is visible."""
+        for st in self.sync.values():
+            if st[1] in INCOHERENT_WRITES:
+                st[2] |= bits
+
+    def record_write(self, names, access: str, by: str):
+        """``by`` wrote ``names`` with ``access`` (image, storage, framebuffer, upload, host)."""
+        for n in names:
+            self.sync[n] = [by, access, 0]
 
     def _drop_clear_fbo(self, obj):
         fbo = self._clear_fbos.pop(id(obj), None)
@@ -464,16 +553,20 @@ class RenderContext:
     def barrier_external(self, names, bits: int = TEXTURE_FETCH_BARRIER_BIT | TEXTURE_UPDATE_BARRIER_BIT
                          | BUFFER_UPDATE_BARRIER_BIT | SHADER_IMAGE_ACCESS_BARRIER_BIT) -> int:
         """Make incoherent writes to ``names`` visible to code outside the graph (the
-        session's accumulation, read-backs). Returns the bits issued (0 = none needed)."""
-        need = 0
-        for n in names:
-            st = self.sync.get(n)
-            if st is not None and st[1] in ("image", "storage") and st[2] & bits != bits:
-                need |= bits & ~st[2]
-                st[2] |= bits
-        if need:
-            self.ctx.memory_barrier(need)
-        return need
+        session's accumulation, read-backs): ``bits`` covers the accesses that code makes.
+        Returns the bits issued (0 = none needed)."""
+        return self.order_access(names, "host", extra=bits)
+
+
+class _graph_op:
+    """Accesses the graph orders and records itself (clears, uploads): sync validation does
+    not attribute them to the pass that asked for them."""
+
+    def __enter__(self):
+        self.saved = sync_check.VALIDATOR.suspend()
+
+    def __exit__(self, *exc):
+        sync_check.VALIDATOR.resume(self.saved)
 
 
 @dataclass
@@ -508,6 +601,8 @@ class FrameGraph:
         self.barrier_log: list[dict] = []  # this frame's barriers: before, resources, bits, names
         self.history_log: list[dict] = []  # every history reset: pass, events, frame sample
         self.validation_log: list[str] = []
+        self.sync_log: list[str] = []  # sync validation's findings (sync_check)
+        self.derive_barriers = True  # False only to test the validation
         self._decls: dict[str, Res] = {}
         self._decl_owner: dict[str, str] = {}
         self._collect_declarations()
@@ -710,50 +805,49 @@ class FrameGraph:
         return all(votes) if votes else None
 
     # ------------------------------------------------------------------ running
+    def _decl(self, rc: RenderContext, name: str) -> Res | None:
+        return self.declaration(name) or rc.specs.get(name, (None,))[0]
+
     def _barrier_before(self, rc: RenderContext, p: Pass) -> int:
-        """Bits to issue before ``p`` so that it sees every incoherent write it depends on."""
+        """Bits to issue before ``p`` so that every access it makes comes after the incoherent
+        writes it depends on: for each resource, the bits that the way it was last written
+        (the record in ``rc.sync``) and the way ``p`` reads or writes it call for."""
         bits, why = 0, []
-        for r in tuple(p.reads) + tuple(p.optional_reads):
-            if r not in rc.resources:
-                continue
+        for r in tuple(p.reads) + tuple(p.optional_reads) + tuple(p.external):
             st = rc.sync.get(r)
-            if st is None or st[1] not in ("image", "storage"):
+            if r not in rc.resources or st is None:
                 continue
-            d = self.declaration(r) or rc.specs.get(r, (None,))[0]
-            need = BUFFER_READ_BITS if (d is not None and d.kind == BUFFER) else TEXTURE_READ_BITS
-            if p.kind == "raster" and not (d is not None and d.kind == BUFFER):
-                need |= FRAMEBUFFER_BARRIER_BIT
-            missing = need & ~st[2]
-            if missing:
-                bits |= missing
-                st[2] |= missing
+            is_buf = rc.is_buffer(r)
+            need = 0
+            for a in p.read_accesses(r, self._decl(rc, r)):
+                need |= required_bits(st[1], a, is_buf)
+            if need & ~st[2]:
+                bits |= need & ~st[2]
                 why.append(r)
         for w in p.writes:
-            d = self.declaration(w) or rc.specs.get(w, (None,))[0]
-            acc = p.access(w, d)
             st = rc.sync.get(w)
-            if st is None or acc == "host":
-                continue  # first write of a fresh resource, or a CPU-side object
-            is_buf = d is not None and d.kind == BUFFER
-            if acc in ("image", "storage"):
-                # an incoherent write after earlier writes or reads of the resource (WAW, WAR)
-                bits |= SHADER_STORAGE_BARRIER_BIT if is_buf else SHADER_IMAGE_ACCESS_BARRIER_BIT
-                why.append(w)
-            elif st[1] in ("image", "storage"):
-                # rendering into (or uploading to) what a shader stored into
-                bits |= FRAMEBUFFER_BARRIER_BIT if acc == "framebuffer" else (
-                    BUFFER_UPDATE_BARRIER_BIT if is_buf else TEXTURE_UPDATE_BARRIER_BIT)
+            if st is None:
+                continue  # first write of a fresh resource
+            is_buf = rc.is_buffer(w)
+            need = always = 0
+            for a in p.write_accesses(w, self._decl(rc, w)):
+                need |= required_bits(st[1], a, is_buf)
+                if a in INCOHERENT_WRITES:  # after earlier writes or reads of the resource (WAW, WAR)
+                    always |= SHADER_STORAGE_BARRIER_BIT if is_buf else SHADER_IMAGE_ACCESS_BARRIER_BIT
+            need = (need & ~st[2]) | always
+            if need:
+                bits |= need
                 why.append(w)
         if bits:
             rc.ctx.memory_barrier(bits)
+            rc.barriers_issued(bits)
             self.barrier_log.append({"before": p.name, "resources": sorted(set(why)), "bits": bits,
                                      "names": barrier_names(bits)})
         return bits
 
     def _after(self, rc: RenderContext, p: Pass):
         for w in p.writes:
-            d = self.declaration(w) or rc.specs.get(w, (None,))[0]
-            rc.sync[w] = [p.name, p.access(w, d), 0]
+            rc.record_write([w], p.access(w, self._decl(rc, w)), p.name)
 
     def _validate(self, rc: RenderContext, p: Pass):
         for w in p.writes:
@@ -806,9 +900,29 @@ class FrameGraph:
                 rc.swap_history(h)
         self.barrier_log = []
         validate = validate_enabled()
+        check = None
+        if sync_check.enabled():
+            sync_check.install()
+            check = sync_check.VALIDATOR
         times: dict[str, float] = {}
+        try:
+            self._run(rc, frame, timers, validate, check, times)
+        finally:
+            if check is not None and check.pass_ is not None:
+                check.end()
+        if check is not None:
+            found = check.take()
+            if found:
+                self.sync_log.extend(found)
+                raise sync_check.SyncError("\n".join(found))
+        return times
+
+    def _run(self, rc, frame, timers, validate, check, times):
         for p in self._plan.active:
-            self._barrier_before(rc, p)
+            if self.derive_barriers:
+                self._barrier_before(rc, p)
+            if check is not None:
+                check.begin(rc, p, self)
             if timers:
                 q = rc.ctx.query(time=True)
                 t0 = time.perf_counter()
@@ -823,12 +937,13 @@ class FrameGraph:
                 t0 = time.perf_counter()
                 p.execute(rc, frame)
                 times[p.name] = (time.perf_counter() - t0) * 1e3
+            if check is not None:
+                check.end()
             self._after(rc, p)
             if p.history:
                 p.history_valid = True
             if validate:
                 self._validate(rc, p)
-        return times
 
     def get_properties(self) -> dict:
         return {p.name: p.get_properties() for p in self.passes}

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .barriers import TEXTURE_UPDATE_BARRIER_BIT
 from .gpu_scene import set_uniform
 from .passes.gbuffer import POSITION
 from .passes.probes import IRR, STATE, find_volume
@@ -51,7 +52,7 @@ def overlay_rgba(sess, scene) -> np.ndarray | None:
     try:
         out.bind_to_image(0, read=False, write=True)
         prog.run((w + 7) // 8, (h + 7) // 8, 1)
-        sess.ctx.memory_barrier()  # the image stores, before the read-back
+        sess.ctx.memory_barrier(TEXTURE_UPDATE_BARRIER_BIT)  # the image stores, before the read-back
         return np.frombuffer(out.read(), np.float32).reshape(h, w, 4).copy()
     finally:
         out.release()

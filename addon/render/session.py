@@ -106,7 +106,7 @@ class Session:
         w, h = tex.size
         prog.run((w + 7) // 8, (h + 7) // 8, 1)
         # the accumulator was stored into: visible to the next accumulation and the read-back
-        self.rc.sync["acc:" + name] = ["accumulate", "image", 0]
+        self.rc.record_write(["acc:" + name], "image", "accumulate")
 
     @staticmethod
     def _read(tex, components=4) -> np.ndarray:

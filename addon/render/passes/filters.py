@@ -29,6 +29,7 @@ and ``scene.gi_preview.use_taa``.
 """
 from __future__ import annotations
 
+from ..barriers import SHADER_IMAGE_ACCESS_BARRIER_BIT, TEXTURE_FETCH_BARRIER_BIT
 from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, EMISSION, GEONORMAL, MOTION, NORMAL, POSITION, GBufferPass
@@ -87,7 +88,7 @@ class _FilterPass(Pass):
             set_uniform(prog, "u_sigma_p", float(sigma_p))
             res[dst].bind_to_image(0, read=False, write=True)
             self._run(rc, prog)
-            rc.ctx.memory_barrier(0x0008 | 0x0020)  # the next step fetches what this one stored
+            rc.ctx.memory_barrier(TEXTURE_FETCH_BARRIER_BIT | SHADER_IMAGE_ACCESS_BARRIER_BIT)  # in-pass: the next step fetches this one's stores
             cur = dst
         return cur
 
@@ -101,7 +102,7 @@ class _FilterPass(Pass):
         set_uniform(prog, "u_in", 1)
         res[dst].bind_to_image(0, read=False, write=True)
         self._run(rc, prog)
-        rc.ctx.memory_barrier(0x0008 | 0x0020)
+        rc.ctx.memory_barrier(TEXTURE_FETCH_BARRIER_BIT | SHADER_IMAGE_ACCESS_BARRIER_BIT)  # in-pass: the filter steps after the copy read its stores
 
     def _modulate(self, rc, frame, src, dst, demod: bool):
         res = rc.resources
@@ -117,7 +118,7 @@ class _FilterPass(Pass):
         set_uniform(prog, "u_demod", 1 if demod else 0)
         res[dst].bind_to_image(0, read=False, write=True)
         self._run(rc, prog)
-        rc.ctx.memory_barrier(0x0008 | 0x0020)
+        rc.ctx.memory_barrier(TEXTURE_FETCH_BARRIER_BIT | SHADER_IMAGE_ACCESS_BARRIER_BIT)  # in-pass: the filter steps read the (de)modulated image
 
 
 class AtrousPass(_FilterPass):
@@ -195,7 +196,7 @@ class SVGFPass(_FilterPass):
         for unit, name in enumerate(("svgf.a", "svgf.moments", "svgf.pos", "svgf.nrm", "svgf.dbg_var", "svgf.dbg_len")):
             res[name].bind_to_image(unit, read=False, write=True)
         self._run(rc, prog)
-        rc.ctx.memory_barrier(0x0008 | 0x0020)
+        rc.ctx.memory_barrier(TEXTURE_FETCH_BARRIER_BIT | SHADER_IMAGE_ACCESS_BARRIER_BIT)  # in-pass: the copy and the wavelet steps read the temporal result
         # the temporal integration (with its variance) is next frame's history
         self._copy(rc, "svgf.a", "svgf.illum", keep_alpha=True)
         out = self._atrous(rc, frame, "svgf.a", "svgf.b", "svgf.a", int(self["iterations"]), 1,
@@ -282,7 +283,7 @@ class TAAPass(_FilterPass):
         for unit, name in enumerate(("taa.history", "taa.aux", "taa.pos", "taa.debug")):
             res[name].bind_to_image(unit, read=False, write=True)
         self._run(rc, prog)
-        rc.ctx.memory_barrier(0x0008 | 0x0020)
+        rc.ctx.memory_barrier(TEXTURE_FETCH_BARRIER_BIT | SHADER_IMAGE_ACCESS_BARRIER_BIT)  # in-pass: the copy fetches the history just stored
         self._copy(rc, "taa.history", COLOR)
 
 

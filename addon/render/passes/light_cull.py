@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..barriers import BUFFER_UPDATE_BARRIER_BIT
 from ..framegraph import BUFFER, HOST, Param, Pass, Res
 from ..gpu_scene import LIGHT_MESH, set_uniform
 from ..scene_data import LightType
@@ -166,7 +167,7 @@ class LightCuller:
 def read_tile_bounds(ctx, cull: LightCull) -> np.ndarray:
     """(tiles, 2, 4) float32: (min.xyz, pixels with geometry), (max.xyz, lights in range).
     Issues the barrier that makes the shader's stores visible to the read-back."""
-    ctx.memory_barrier()  # GL_ALL_BARRIER_BITS: BUFFER_UPDATE for glGetBufferSubData included
+    ctx.memory_barrier(BUFFER_UPDATE_BARRIER_BIT)  # the cull shader's stores, before glGetBufferSubData
     return np.frombuffer(cull.tile_bounds.read(size=cull.n_tiles * 32), np.float32).reshape(-1, 2, 4)
 
 

@@ -59,6 +59,11 @@ from .screen_space import camera_vectors
 
 LPV_R, LPV_G, LPV_B, LPV_GV, LPV_GRID = "lpv.r", "lpv.g", "lpv.b", "lpv.gv", "lpv.grid"
 LPV_GVD = "lpv.gv_depth"  # per axis: blocking x the blockers' position (cell units)
+# the pass's own SH volumes (r, g, b): the injected light (then a propagation ping-pong
+# buffer) and the other ping-pong buffer; kept across frames, so declared for the graph's
+# barriers (next frame's framebuffer clear comes after this frame's image stores)
+LPV_INJECT = ("lpv.inject.r", "lpv.inject.g", "lpv.inject.b")
+LPV_STEP = ("lpv.step.r", "lpv.step.g", "lpv.step.b")
 MAX_CASCADES = 4
 
 
@@ -138,13 +143,20 @@ class LPVPass(Pass):
     """Injection and propagation (see the module docstring)."""
 
     name = "lpv"
+    # raster (the geometry volume and the injection: additive point draws after a framebuffer
+    # clear) and compute (the geometry rays, the copy and the propagation: image stores)
+    kind = "mixed"
     provides = INDIRECT
     reads = (RSM_POS, RSM_NRM, RSM_FLUX, RSM_VIEWS, POSITION, NORMAL)
-    writes = (LPV_R, LPV_G, LPV_B, LPV_GV, LPV_GVD, LPV_GRID)
+    writes = (LPV_R, LPV_G, LPV_B, LPV_GV, LPV_GVD, LPV_GRID) + LPV_INJECT + LPV_STEP
+    # sizes follow the grid and cascade parameters: the pass allocates the volumes itself
     declared = (Res(LPV_R, managed=False, check="finite"), Res(LPV_G, managed=False, check="finite"),
                 Res(LPV_B, managed=False, check="finite"), Res(LPV_GV, managed=False, check="finite"),
                 Res(LPV_GVD, managed=False, check="finite"),
-                Res(LPV_GRID, kind=HOST, managed=False, check="none"))
+                Res(LPV_GRID, kind=HOST, managed=False, check="none")) + tuple(
+        Res(n, managed=False, check="finite") for n in LPV_INJECT + LPV_STEP)
+    write_access = {**{n: "image" for n in (LPV_R, LPV_G, LPV_B) + LPV_STEP},
+                    **{n: ("framebuffer", "image") for n in (LPV_GV, LPV_GVD) + LPV_INJECT}}
     history_resets = frozenset()
     params = (
         Param("grid", 24, 8, 64, "cells per side of one cascade"),
@@ -324,6 +336,9 @@ class LPVPass(Pass):
         res[LPV_GV] = self.gv
         res[LPV_GVD] = self.gvd
         res[LPV_GRID] = self.grid
+        for names, k in ((LPV_INJECT, "a"), (LPV_STEP, "b")):
+            for n, t in zip(names, self.tex[k]):
+                res[n] = t
 
     def release(self):
         for ts in (self.tex or {}).values():

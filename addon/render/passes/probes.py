@@ -43,7 +43,7 @@ import numpy as np
 from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION
-from .screen_space import Units, bind_frame, bind_gbuffer
+from .screen_space import GBUFFER_BOUND, Units, bind_frame, bind_gbuffer
 
 COLOR = "color"
 IRR, DIST, STATE = "probes.irradiance", "probes.distance", "probes.state"
@@ -497,6 +497,7 @@ class ProbeGatherPass(ProbePass):
     def __init__(self, volume, quality=None, **kw):
         super().__init__(volume, quality, **kw)
         self.reads = (COLOR, ALBEDO, NORMAL, POSITION, GEONORMAL, IRR, DIST, STATE)
+        self.optional_reads = GBUFFER_BOUND  # bind_gbuffer
         self.writes = (COLOR, EFFECT, VIEW_IRR, VIEW_STATE, VIEW_ATLAS)
         self.declared = (Res(EFFECT, check="radiance"), Res(VIEW_IRR, check="radiance"),
                          Res(VIEW_STATE, check="radiance"), Res(VIEW_ATLAS, check="radiance"))

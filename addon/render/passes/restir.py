@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..barriers import SHADER_IMAGE_ACCESS_BARRIER_BIT, TEXTURE_FETCH_BARRIER_BIT
 from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, EMISSION, GEONORMAL, MOTION, NORMAL, POSITION
@@ -128,4 +129,5 @@ class RestirDIPass(Pass):
                     res[name].bind_to_image(b, read=False, write=True)
             rc.dispatch(prog, gx, gy)
             if stage == 0:
-                rc.ctx.memory_barrier(0x0008 | 0x0020)  # stage 1 fetches the neighbours' reservoirs
+                # in-pass: stage 1 fetches the neighbours' reservoirs stage 0 stored
+                rc.ctx.memory_barrier(TEXTURE_FETCH_BARRIER_BIT | SHADER_IMAGE_ACCESS_BARRIER_BIT)

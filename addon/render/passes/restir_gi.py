@@ -27,6 +27,7 @@ that change radiance or positions (geometry, transforms, materials, lights, text
 """
 from __future__ import annotations
 
+from ..barriers import SHADER_IMAGE_ACCESS_BARRIER_BIT, TEXTURE_FETCH_BARRIER_BIT
 from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, GEONORMAL, MOTION, NORMAL, POSITION
@@ -105,7 +106,7 @@ class RestirGIPass(Pass):
                 res[name].use(in_units[uni])
 
         gx, gy = rc.groups(8)
-        barrier = 0x0008 | 0x0020  # TEXTURE_FETCH | SHADER_IMAGE_ACCESS: the next stage fetches
+        barrier = TEXTURE_FETCH_BARRIER_BIT | SHADER_IMAGE_ACCESS_BARRIER_BIT  # in-pass: the next stage fetches or loads this one's stores
         # feedback 1: stage 0 -> tmp, stage 1 -> history (the spatial result is next frame's
         # history); feedback 0: stage 0 -> history, stage 1 -> tmp (the temporal result is)
         fb = int(self["feedback"]) == 1

@@ -52,7 +52,7 @@ from ..framegraph import CAMERA_CUT, HOST, PARAM_CHANGE, Effect, FrameGraph, Par
 from ..gpu_scene import set_uniform
 from ..scene_data import LightType
 from .gbuffer import GEONORMAL, NORMAL, POSITION
-from .screen_space import TemporalPass, Units, bind_frame, bind_gbuffer, scaled
+from .screen_space import GBUFFER_BOUND, TemporalPass, Units, bind_frame, bind_gbuffer, scaled
 from .shadows import CUBE_DIRS, look_at, ortho, perspective
 
 RSM_POS, RSM_NRM, RSM_FLUX, RSM_VIEWS = "rsm.position", "rsm.normal", "rsm.flux", "rsm.views"
@@ -298,6 +298,7 @@ class RSMGatherPass(Pass):
     name = "rsm_gather"
     provides = INDIRECT
     reads = (POSITION, NORMAL, GEONORMAL, RSM_POS, RSM_NRM, RSM_FLUX, RSM_VIEWS)
+    optional_reads = GBUFFER_BOUND  # bind_gbuffer
     writes = ("rsm.low",)
     declared = (Res("rsm.low", scale="low_scale", check="radiance"),)
     history_resets = frozenset()
@@ -332,6 +333,7 @@ class RSMResolvePass(Pass):
     name = "rsm_resolve"
     provides = INDIRECT
     reads = RSMGatherPass.reads + ("rsm.low",)
+    optional_reads = GBUFFER_BOUND  # bind_gbuffer
     writes = ("rsm.raw", "rsm.regather")
     declared = (Res("rsm.raw", check="radiance"), Res("rsm.regather", dtype="f2", check="radiance"))
     history_resets = frozenset()

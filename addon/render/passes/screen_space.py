@@ -74,10 +74,14 @@ class Units:
         return u
 
 
+# what bind_gbuffer binds: a pass that calls it lists these in optional_reads
+GBUFFER_BOUND = (ALBEDO, NORMAL, POSITION, GEONORMAL, MOTION)
+
+
 def bind_gbuffer(rc, prog, units: Units):
     res = rc.resources
-    for name, uni in ((ALBEDO, "u_gb_albedo"), (NORMAL, "u_gb_normal"), (POSITION, "u_gb_position"),
-                      (GEONORMAL, "u_gb_geonormal"), (MOTION, "u_gb_motion")):
+    for name, uni in zip(GBUFFER_BOUND, ("u_gb_albedo", "u_gb_normal", "u_gb_position", "u_gb_geonormal",
+                                         "u_gb_motion")):
         if name in res:
             units.tex(prog, uni, res[name])
 
@@ -88,6 +92,8 @@ def scaled(size, scale: float) -> tuple[int, int]:
 
 class ScreenPass(Pass):
     """A compute pass of the family. ``provides`` is given per technique."""
+
+    optional_reads = GBUFFER_BOUND  # bind_gbuffer
 
     def __init__(self, quality=None, *, provides=frozenset(), name=None, **props):
         super().__init__(quality, **props)
@@ -268,6 +274,8 @@ class AmbientStatsPass(ScreenPass):
         self.reads = (ao, DIRECT_RADIANCE, ALBEDO, NORMAL, POSITION)
         self.writes = (STATS0, STATS1)
         self.declared = (Res(STATS0, levels=0, check="radiance"), Res(STATS1, levels=0, check="radiance"))
+        # level 0 by image store, the other levels by glGenerateMipmap
+        self.write_access = {STATS0: ("image", "upload"), STATS1: ("image", "upload")}
         self.history_resets = frozenset()
 
     def execute(self, rc, frame):
@@ -281,7 +289,7 @@ class AmbientStatsPass(ScreenPass):
         tex[0].bind_to_image(0, read=False, write=True)
         tex[1].bind_to_image(1, read=False, write=True)
         self.run(rc, prog)
-        # the mip reduction reads level 0, which the dispatch stored into
+        # in-pass: the mip build reads the level 0 just stored; later fetches and image loads of it
         rc.ctx.memory_barrier(TEXTURE_FETCH_BARRIER_BIT | TEXTURE_UPDATE_BARRIER_BIT | SHADER_IMAGE_ACCESS_BARRIER_BIT)
         for t in tex:
             t.build_mipmaps()

@@ -31,6 +31,7 @@ from ..world_map import world_map_of
 from .light_cull import LIGHT_CULL, TILE_BOUNDS, light_scores
 
 ATLAS, VIEWS, WORLD_RANGE = "shadow.atlas", "shadow.views", "shadow.world_range"
+SCENE_LIGHTS = "scene.lights"  # the GPU scene's light buffer: the pass writes each light's view range
 SHADOW_SELECTION = "shadow.selection"
 
 
@@ -123,14 +124,15 @@ class ShadowPass(Pass):
     name = "shadows"
     provides = frozenset({Effect.SHADOWS, Effect.ENVIRONMENT})
     kind = "raster"
-    writes = (ATLAS, VIEWS, WORLD_RANGE, SHADOW_SELECTION)
+    writes = (ATLAS, VIEWS, WORLD_RANGE, SHADOW_SELECTION, SCENE_LIGHTS)
     optional_reads = (LIGHT_CULL, TILE_BOUNDS)  # the budget ranks lights by the visible tiles
     # sizes depend on the lights: the pass allocates them (managed=False); the views are
     # written from the CPU, the world range is a Python object
     declared = (Res(ATLAS, components=1, dtype="f4", managed=False, check="none"),
                 Res(VIEWS, kind=BUFFER, managed=False, check="none"),
                 Res(WORLD_RANGE, kind=HOST, managed=False, check="none"),
-                Res(SHADOW_SELECTION, kind=HOST, managed=False, check="none"))
+                Res(SHADOW_SELECTION, kind=HOST, managed=False, check="none"),
+                Res(SCENE_LIGHTS, kind=BUFFER, managed=False, check="none"))
     # a tile keeps its view while the scene is unchanged (see the module docstring)
     history_resets = frozenset({"geometry", "transforms", "lights", "param_change", "camera_cut"})
     params = (
@@ -496,6 +498,7 @@ class ShadowPass(Pass):
             lights[li, 24] = first
             lights[li, 25] = count
             lights[li, 26] = self._per_group.get(li, count)
+        rc.register_external(SCENE_LIGHTS, rc.scene.light_buf, scene_wide=True)
         rc.scene.light_buf.write(lights.tobytes())
         first, count = light_views.pop("world", (0, 0))
         rc.resources[WORLD_RANGE] = WorldRange(first, count)

@@ -48,7 +48,8 @@ import math
 
 import numpy as np
 
-from ..framegraph import (BUFFER, BUFFER_UPDATE_BARRIER_BIT, CAMERA_CUT, HOST, PARAM_CHANGE,
+from ..barriers import BUFFER_UPDATE_BARRIER_BIT
+from ..framegraph import (BUFFER, CAMERA_CUT, HOST, PARAM_CHANGE,
                           SHADER_IMAGE_ACCESS_BARRIER_BIT, SHADER_STORAGE_BARRIER_BIT, TEX3D,
                           TEXTURE_FETCH_BARRIER_BIT, TEXTURE_UPDATE_BARRIER_BIT, Effect, Param, Pass, Res)
 from ..gpu_scene import set_uniform
@@ -56,10 +57,13 @@ from ..rt_scene import light_selection
 from .gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION
 from .light_cull import light_ranges
 from .rsm import RSM_POS, RSM_VIEWS, LightGatedGraph, MAX_RSM_VIEWS, shadow_lights
-from .screen_space import COLOR, Units, bind_frame, bind_gbuffer, camera_vectors
+from .screen_space import COLOR, GBUFFER_BOUND, Units, bind_frame, bind_gbuffer, camera_vectors
 from .shadows import ATLAS, VIEWS
 
 VOXELS, GRID, RADIANCE = "vxgi.voxels", "vxgi.grid", "vxgi.radiance"
+# the occupied-voxel list (count + indices, appended by the voxelisation), the injection's
+# light-culling table and its direct-light store (a reset frame's runs share it)
+VX_LIST, VX_CULL, VX_DIRECT = "vxgi.list", "vxgi.cull", "vxgi.direct"
 DIFFUSE, GLOSSY, AO, DEBUG = "vxgi.diffuse", "vxgi.glossy", "vxgi.ao", "vxgi.debug"
 VX_REC = 1 + 6 * 8  # words per voxel record: bucket mask + 6 orientation buckets (shaders/vxgi/common.glsl)
 MAX_CASCADES = 4
@@ -168,10 +172,13 @@ class VoxelizePass(Pass):
     name = "vxgi_voxelize"
     kind = "raster"
     provides = GI
-    writes = (VOXELS, GRID)
+    writes = (VOXELS, GRID, VX_LIST)
     declared = (Res(VOXELS, kind=BUFFER, managed=False, check="none"),
-                Res(GRID, kind=HOST, managed=False, check="none"))
-    write_access = {VOXELS: "storage"}
+                Res(GRID, kind=HOST, managed=False, check="none"),
+                Res(VX_LIST, kind=BUFFER, dtype="u4", managed=False, check="none"))
+    # records and list by shader-storage stores from the fragment shader; the list's count
+    # is reset by an upload first
+    write_access = {VOXELS: "storage", VX_LIST: ("upload", "storage")}
     history_resets = frozenset()
     params = (
         Param("resolution", 64, 8, 256, "voxels per side of one cascade (a multiple of 8 keeps 4 mip levels)"),
@@ -222,6 +229,7 @@ class VoxelizePass(Pass):
         key = (id(gs), v["geometry"], v["transforms"], v["materials"], v["textures"], grid.array().tobytes(),
                grid.moving_levels, float(self["thickness"]))
         rc.resources[VOXELS] = self.buf
+        rc.resources[VX_LIST] = self.list
         if not fresh and key == self._key:
             # nothing the voxels hold changed (surfaces, their albedo, the cascades' placement):
             # the records and the list of occupied voxels stay as they are
@@ -235,8 +243,10 @@ class VoxelizePass(Pass):
         if not fresh:  # zero the records the last voxelisation wrote (a new buffer is zero)
             clear = rc.programs.compute("vxgi/clear.comp")
             rc.dispatch(clear, (n * n * n * C + 255) // 256)
-        # the list of occupied voxels starts empty (after the clear's and the shaders' reads of it)
-        rc.ctx.memory_barrier(BUFFER_UPDATE_BARRIER_BIT | SHADER_STORAGE_BARRIER_BIT)
+            # in-pass: the clear's storage writes and list reads -> the list's reset upload and
+            # the voxelisation's atomics on the records
+            rc.ctx.memory_barrier(BUFFER_UPDATE_BARRIER_BIT | SHADER_STORAGE_BARRIER_BIT)
+        # the list of occupied voxels starts empty (the graph orders it after last frame's stores)
         self.list.write(np.zeros(1, np.uint32).tobytes())
         prog = rc.programs.program("vxgi/voxelize.vert", "vxgi/voxelize.frag", geometry="vxgi/voxelize.geom")
         gs.bind(prog)
@@ -304,9 +314,16 @@ def vx_defines(p) -> dict:
 class VoxelInjectPass(Pass):
     name = "vxgi_inject"
     provides = GI
-    reads = (VOXELS, GRID, RSM_POS, RSM_VIEWS, RADIANCE + "@prev")
+    reads = (VOXELS, VX_LIST, GRID, RSM_POS, RSM_VIEWS, RADIANCE + "@prev")
     optional_reads = (ATLAS, VIEWS)
-    writes = (RADIANCE,)
+    # a history reset ping-pongs the injection runs through the @prev twin (see execute); each
+    # run clears level 0 by upload, then stores the occupied voxels. The last run clears the
+    # voxel records it read (shader-storage stores) for the next frame's voxelisation.
+    writes = (RADIANCE, RADIANCE + "@prev", VOXELS, VX_CULL, VX_DIRECT)
+    write_access = {RADIANCE: ("upload", "image"), RADIANCE + "@prev": ("upload", "image"), VOXELS: "storage",
+                    VX_CULL: "upload", VX_DIRECT: "storage"}
+    # the list's count is read back (a reset frame sizes the direct store), then read by the shader
+    read_access = {VX_LIST: ("readback", "storage")}
     history_resets = frozenset({CAMERA_CUT, PARAM_CHANGE})
     params = CONE_PARAMS + (
         Param("multi_bounce", True, doc="inject last frame's indirect irradiance (and sky light) into the voxels"),
@@ -376,8 +393,8 @@ class VoxelInjectPass(Pass):
     def _direct_store(self, rc) -> int:
         """A reset frame's direct-light store, sized to this frame's occupied voxels (read back:
         a reset frame runs the injection several times anyway); returns its capacity in entries."""
-        rc.ctx.memory_barrier(BUFFER_UPDATE_BARRIER_BIT)  # the voxelisation's list appends -> the read-back
-        count = int(np.frombuffer(self.voxelize.list.read(size=4), np.uint32)[0])
+        # the graph ordered the read-back after the voxelisation's list appends (read_access)
+        count = int(np.frombuffer(rc.resources[VX_LIST].read(size=4), np.uint32)[0])
         self.occupied = count
         entry = DIRECT_FLOATS * 4
         cap = min(max(count, 1), MAX_DIRECT_BYTES // entry)
@@ -390,7 +407,9 @@ class VoxelInjectPass(Pass):
 
     def resources(self):
         v = self.voxelize
-        return (radiance_decl(int(v["resolution"]), int(v["cascades"])),)
+        return (radiance_decl(int(v["resolution"]), int(v["cascades"])),
+                Res(VX_CULL, kind=BUFFER, managed=False, check="none"),
+                Res(VX_DIRECT, kind=BUFFER, managed=False, check="none"))
 
     def reset_history(self):
         super().reset_history()
@@ -439,8 +458,10 @@ class VoxelInjectPass(Pass):
         set_uniform(prog, "u_vx_box_ramp", float(self["box_ramp"]))
         set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
         res[VOXELS].bind_to_storage_buffer(BINDING_RECORDS)
-        self.voxelize.list.bind_to_storage_buffer(BINDING_LIST)
+        res[VX_LIST].bind_to_storage_buffer(BINDING_LIST)
         cull = self._cull_table(rc)
+        if self.cull_buf is not None:
+            res[VX_CULL] = self.cull_buf
         set_uniform(prog, "u_cull", 1 if cull else 0)
         set_uniform(prog, "u_cull_samples", int(self["cull_samples"]))
         self.cull_buf.bind_to_storage_buffer(BINDING_CULL)
@@ -467,6 +488,7 @@ class VoxelInjectPass(Pass):
         self.direct_entries = cap
         if self.direct_buf is None:
             self.direct_buf = rc.ctx.buffer(reserve=DIRECT_FLOATS * 4)
+        res[VX_DIRECT] = self.direct_buf
         self.direct_buf.bind_to_storage_buffer(BINDING_DIRECT)
         set_uniform(prog, "u_direct_capacity", int(cap))
         for k in range(runs):
@@ -490,8 +512,10 @@ class VoxelInjectPass(Pass):
                                       | SHADER_STORAGE_BARRIER_BIT)
                 build_mips(rc, src, grid)
                 rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT | TEXTURE_FETCH_BARRIER_BIT)
-            # clear level 0 (what was stored in it two frames ago), then write the occupied voxels
-            rc.ctx.memory_barrier(TEXTURE_UPDATE_BARRIER_BIT)
+            # clear level 0 (what was stored in it two frames ago), then write the occupied voxels;
+            # the first run's upload is ordered by the graph (write_access), a later run's here
+            if k > 0:
+                rc.ctx.memory_barrier(TEXTURE_UPDATE_BARRIER_BIT)  # in-pass: after the run two back stored it
             dst.write(self.zeros)
             dst.bind_to_image(0, read=False, write=True, level=0)
             rc.dispatch(prog, (n * n * n * C + 255) // 256)
@@ -530,7 +554,7 @@ def build_mips(rc, tex, grid: VoxelGrid):
     mip = rc.programs.compute("vxgi/mip.comp")
     set_uniform(mip, "u_cascades", C)
     for k in range(grid.levels - 1):
-        if k > 0:
+        if k > 0:  # in-pass: level k was stored by the last dispatch
             rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT | TEXTURE_FETCH_BARRIER_BIT)
         nd = n >> (k + 1)
         tex.bind_to_image(0, read=False, write=True, level=k + 1)
@@ -543,6 +567,7 @@ class VoxelTracePass(Pass):
     name = "vxgi_trace"
     provides = GI
     reads = (RADIANCE, GRID, COLOR, ALBEDO, NORMAL, POSITION, GEONORMAL)
+    optional_reads = GBUFFER_BOUND  # bind_gbuffer
     writes = (COLOR, DIFFUSE, GLOSSY, AO)
     declared = (Res(DIFFUSE, check="radiance"), Res(GLOSSY, check="radiance"), Res(AO, check="radiance"))
     history_resets = frozenset()

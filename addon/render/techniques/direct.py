@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..barriers import SHADER_STORAGE_BARRIER_BIT
 from ..framegraph import Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from ..passes.gbuffer import ALBEDO, EMISSION, GEONORMAL, NORMAL, POSITION, GBufferPass
@@ -145,7 +146,7 @@ class DirectLightPass(Pass):
         if rc.resources.get(LIGHT_CULL) is not cull:
             # culled inline by this pass: its SSBO stores before this dispatch reads them
             # (the graph places the barrier after the light_cull pass)
-            rc.ctx.memory_barrier(0x2000)  # GL_SHADER_STORAGE_BARRIER_BIT
+            rc.ctx.memory_barrier(SHADER_STORAGE_BARRIER_BIT)
         rc.dispatch(prog, *rc.groups(8))
 
     def release(self):

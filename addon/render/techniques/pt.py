@@ -110,7 +110,7 @@ def render_offline(ctx, scene, frames: int, *, spp_per_frame: int = 4, seed: int
     ``spp_per_frame`` samples each, on ``ctx`` (the caller's GL thread). Returns a dict with
     ``frames`` (F, H, W, 3) per-frame means of colour, ``aovs`` (name -> (H, W, 3) mean),
     ``time_ms`` (wall time of tracing, synchronised) and ``bvh_ms``. Row 0 = bottom row."""
-    from ..framegraph import FrameState, RenderContext
+    from ..framegraph import FrameGraph, FrameState, RenderContext
     from ..gpu_scene import GPUScene
     from ..shaders import ProgramCache
 
@@ -120,21 +120,23 @@ def render_offline(ctx, scene, frames: int, *, spp_per_frame: int = 4, seed: int
     programs = programs or ProgramCache(ctx)
     rc = RenderContext(ctx, programs, gs, (scene.width, scene.height))
     p = PathTracePass(None, spp_per_frame=spp_per_frame, **props)
-    for d in p.resources():
-        rc.allocate(d, p.props)
-    p.compile(rc)
+    # a one-pass graph: it orders each frame's image stores after the last frame's read-backs
+    # and stores, and the read-backs after the stores
+    graph = FrameGraph([p])
+    graph.plan(set(p.provides))
+    graph.compile(rc)
     out = np.zeros((frames, scene.height, scene.width, 3), np.float32)
     aovs = {n: np.zeros((scene.height, scene.width, 3), np.float64) for n in p.writes[1:]}
-    p.execute(rc, FrameState(index=0, sample=0, seed=seed))  # warm-up: BVH, compile
+    graph.execute(rc, FrameState(index=0, sample=0, seed=seed), timers=False)  # warm-up: BVH, compile
     ctx.finish()
     bvh_ms = p.bvh_ms
     t0 = time.perf_counter()
     for f in range(frames):
-        p.execute(rc, FrameState(index=f, sample=f, seed=seed))
-        img = np.frombuffer(rc.resources[COLOR].read(), np.float32).reshape(scene.height, scene.width, 4)
+        graph.execute(rc, FrameState(index=f, sample=f, seed=seed), timers=False)
+        img = np.frombuffer(rc.read_back(COLOR), np.float32).reshape(scene.height, scene.width, 4)
         out[f] = img[..., :3]
         for n in aovs:
-            aovs[n] += np.frombuffer(rc.resources[n].read(), np.float32).reshape(scene.height, scene.width, 4)[..., :3]
+            aovs[n] += np.frombuffer(rc.read_back(n), np.float32).reshape(scene.height, scene.width, 4)[..., :3]
     ctx.finish()
     dt = (time.perf_counter() - t0) * 1e3
     for n in aovs:

@@ -116,7 +116,7 @@ class SSDOPass(AOPass):
         bind_gbuffer(rc, tprog, Units(1))
         res[self.trust].bind_to_image(1, read=False, write=True)
         self.run(rc, tprog)
-        rc.ctx.memory_barrier(TEXTURE_FETCH_BARRIER_BIT)
+        rc.ctx.memory_barrier(TEXTURE_FETCH_BARRIER_BIT)  # in-pass: the sampling dispatch fetches the trust
 
         senders = int(self["sender_samples"])
         if senders > 0:
@@ -153,7 +153,7 @@ class SSDOPass(AOPass):
         res[self.ray_d].bind_to_image(2, read=False, write=True)
         res[self.part].bind_to_image(4, read=False, write=True)
         self.run(rc, prog, size)
-        rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT)
+        rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT)  # in-pass: the trace loads the stored rays
 
         # the tiles' rays through the scene, side by side (shared ray tracer)
         rt = rc.scene.rt()
@@ -168,7 +168,7 @@ class SSDOPass(AOPass):
         res[self.ray_d].bind_to_image(2, read=True, write=False)
         res[self.tile_l].bind_to_image(3, read=False, write=True)
         self.run(rc, trace, tiles)
-        rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT)
+        rc.ctx.memory_barrier(SHADER_IMAGE_ACCESS_BARRIER_BIT)  # in-pass: the resolve loads the tiles' light
 
         resolve = self.program(rc, "screen_space/ssdo_resolve.comp")
         bind_frame(rc, resolve, frame)
@@ -216,7 +216,7 @@ class SSDOPass(AOPass):
             tex.bind_to_image(0, read=True, write=False, level=lv - 1)
             tex.bind_to_image(1, read=False, write=True, level=lv)
             self.run(rc, red, (max(1, pw >> lv), max(1, ph >> lv)))
-        rc.ctx.memory_barrier(TEXTURE_FETCH_BARRIER_BIT)
+        rc.ctx.memory_barrier(TEXTURE_FETCH_BARRIER_BIT)  # in-pass: the gather fetches the flux mips
         return tex, levels - 1
 
     def release(self):
