@@ -244,12 +244,11 @@ def test_moving_light_and_camera_no_flicker():
 
 def test_cascade_snap_keeps_the_indirect_light():
     """A camera move of 5 mm that snaps the fine cascade by 4 voxels (pose 10 -> 11 of
-    bench_vxgi --stability, light still): with aligned_mips (the default) a moving cascade is
-    read only at the mips whose texels the snap keeps in place, so the indirect light barely
-    changes. Without it the coarser mips' texels shift by half a texel and the indirect light
-    steps (the q0 60-frame largest step, 1.46x Cycles'). Measured (q0, 32 px): indirect step /
-    indirect mean 0.026 with aligned_mips, 0.080 without. Asserted: the snap happens between
-    the poses, and the step is <= 0.045."""
+    bench_vxgi --stability, light still): a moving cascade is read only at the mips whose
+    texels the snap keeps in place (passes/vxgi.MOVING_LEVELS), so the indirect light barely
+    changes (reading its coarser mips, whose texels the snap shifts by half a texel, measured
+    0.080). Measured (q0, 32 px): indirect step / indirect mean 0.026. Asserted: the snap
+    happens between the poses, and the step is <= 0.045."""
     import types
 
     from gi_preview.render.passes.vxgi import voxel_cascades
@@ -270,7 +269,7 @@ def test_cascade_snap_keeps_the_indirect_light():
                [..., :3].copy() for sd in sds]
         assert all(np.isfinite(i).all() and i.min() >= 0.0 for i in ind)
         step = float(np.abs(ind[1] - ind[0]).mean()) / float(ind[0].mean())
-        print(f"VXGI cascade snap: indirect step / indirect mean {step:.4f} (0.080 without aligned_mips)")
+        print(f"VXGI cascade snap: indirect step / indirect mean {step:.4f}")
         assert step <= 0.045
     finally:
         session.release_session("vxgi_snap")
