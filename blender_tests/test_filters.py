@@ -1,4 +1,4 @@
-"""The denoising filters (issue 11): ATROUS, SVGF, TAA as technique ids (1-spp PT + filter)
+"""The denoising filters: ATROUS, SVGF, TAA as technique ids (1-spp PT + filter)
 and as ``denoiser`` / ``use_taa`` options that end any technique's graph.
 
 Measured against Cycles (full, 256 spp, 40-48 px, cached references):
@@ -236,7 +236,7 @@ def test_light_edit_caps_history_instead_of_restarting(tech):
                                                     ("TAA", "turned_history", 2.0, 14.0)])
 def test_sub_pixel_motion_caps_history_where_the_surface_changes(tech, param, capped, full):
     """Sub-pixel camera motion (the Cornell slow pan, 0.22 px/frame at 48 px) caps the history of
-    the pixels whose surface may change under them (SVGF.md / TAA.md, tenth session): SVGF's
+    the pixels whose surface may change under them (SVGF.md / TAA.md): SVGF's
     geometric-edge pixels at edge_history (8, + this frame), TAA's pixels whose kept history
     mostly faces elsewhere at turned_history (1, + this frame). Read from the history-length
     debug views against a session with the parameter at 0: identical while the camera is still,
