@@ -132,9 +132,12 @@ vec4 vx_sample(vec3 p, float diam, vec3 d, out float width) {
                 float m = n / exp2(lj);  // texels per side at this mip
                 vec3 lk = l;
                 // box with linear edges: flat over the texel's middle, a ramp u_vx_box_ramp
-                // texels wide across each texel boundary (continuous in the sample's position)
+                // texels wide across each texel boundary (continuous in the sample's position);
+                // 0: the hard box, the texel holding the sample (a sample on a boundary reads
+                // the upper one)
                 float x = l[k] * m - 0.5, i = floor(x);
-                float e = clamp((x - i - 0.5) / max(u_vx_box_ramp, 1e-6) + 0.5, 0.0, 1.0);
+                float e = u_vx_box_ramp > 0.0 ? clamp((x - i - 0.5) / u_vx_box_ramp + 0.5, 0.0, 1.0)
+                                              : step(0.5, x - i);
                 lk[k] = clamp((i + e + 0.5) / m, 0.5 / m, 1.0 - 0.5 / m);
                 t += wj * textureLod(u_vx_radiance, vec3(lk.xy, (slab + lk.z) / slabs), lj);
             }
