@@ -87,9 +87,9 @@ def test_svgf_still_quarter_of_pt(scene_name):
         assert np.isfinite(imgs[-1]).all()
         assert sv <= 0.25 * pt_rel, f"SVGF relMSE {sv:.4f} > 1/4 of 1-spp PT's {pt_rel:.4f}"
         # the brightness of the 16 samples it averaged. With the paper's feedback (the first
-        # à-trous iteration as history) SVGF/PT16 was 0.82 on the sun-lit room: the centre-sigma
-        # luminance weights average a bright sample down while its neighbours ignore it, and the
-        # feedback kept that loss; the history is the temporal integration.
+        # à-trous iteration as history) SVGF/PT16 measures 0.82 on the sun-lit room: the
+        # centre-sigma luminance weights average a bright sample down while its neighbours ignore
+        # it, and the feedback keeps that loss; here the history is the temporal integration.
         # Measured here (16 frames from an empty history, 40 px): 0.98 cornell, 0.87 sun-lit room:
         # what remains is the à-trous of a young history (large variance, wide
         # luminance weights), 0.965 once the history is long (bench_filters.py, held frames)
