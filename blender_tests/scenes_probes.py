@@ -1,4 +1,4 @@
-"""Scenes for the probe family (issue 12: IRRADIANCE_VOLUME, DDGI, RTXGI), built in code.
+"""Scenes for the probe family (IRRADIANCE_VOLUME, DDGI, RTXGI), built in code.
 
 * ``white_room``: a closed room (4 x 4 x 3 m, every wall white diffuse, albedo 0.8, no
   specular) lit by one point lamp under the ceiling; the camera inside. Many bounces carry

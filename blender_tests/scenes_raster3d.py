@@ -1,4 +1,4 @@
-"""Reproduction scenes for the 3D-raster family (issue 10: RSM, LPV, VXGI), built in code.
+"""Reproduction scenes for the 3D-raster family (RSM, LPV, VXGI), built in code.
 
 * ``two_rooms``: two closed 2 x 2 x 2 m rooms side by side (x in [-2, 0] and [0, 2]) that
   share one wall of zero thickness at x = 0 (thinner than any RSM texel, LPV cell or voxel).

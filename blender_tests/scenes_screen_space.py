@@ -1,4 +1,4 @@
-"""Reproduction scenes for the screen-space family (issue 9), built in code.
+"""Reproduction scenes for the screen-space family, built in code.
 
 * ``corridor``: a corridor with a near-mirror metal floor (roughness 0.05), a gold metal
   wall (roughness 0.3), a diffuse blue wall, a diffuse ceiling and a diffuse far wall, lit

@@ -1,4 +1,4 @@
-"""Per-frame comparison of an animation with Cycles (issue 11, point 4):
+"""Per-frame comparison of an animation with Cycles:
 ``scripts/gi_compare.py --animation`` and its logic in ``addon/compare/animation.py``.
 
 * The disocclusion mask (depth + the two cameras) against a case with a known answer: a pan
@@ -9,13 +9,13 @@
   with several noise draws the ratio is that of the means.
 * End to end on the Cornell box (32 px, a pan of 6 frames then 9 still frames, Cycles
   256 spp + OpenImageDenoise per frame, cached): results.json, the plot and the report are
-  written, the scene is left as it was, and SVGF and TAA meet the issue's acceptance under a
+  written, the scene is left as it was, and SVGF and TAA meet the acceptance bounds under a
   moving camera: the error in the pixels the pan disoccluded is back within 1.5x of the
   still-camera level 8 frames after the stop (no ghost trail), and the temporal stability
   figure is within 2x of Cycles'.
-* TAA's ghost on the 48-px Cornell pan (12 moving frames, 3 noise draws), where the TAA before
-  the history normal test (146b53a) left a lit ghost on the revealed side face: +8 frames
-  within 1.3x of the still level (measured 1.07x; that TAA 2.01x).
+* TAA's ghost on the 48-px Cornell pan (12 moving frames, 3 noise draws), where a TAA without
+  the history normal test leaves a lit ghost on the revealed side face: +8 frames within 1.3x
+  of the still level (measured 1.07x; without the normal test 2.01x).
 """
 from __future__ import annotations
 
@@ -217,10 +217,10 @@ def test_animation_compare_cornell_svgf_taa(tmp_path):
             assert a["stability_ratio"] <= 2.0, f"{tech}: stability {a['stability_ratio']:.2f}x Cycles'"
             # paired: the still run is as long as the moving one and drew the same seeds
             assert tr["paired"] and tr["same_seeds"] and len(tr["still_relmse"]) == 16
-            # the issue's criterion. Measured (paired, this draw): SVGF 1.28x, TAA 1.30x; over 12
+            # the recovery criterion. Measured (paired, this draw): SVGF 1.28x, TAA 1.30x; over 12
             # seed offsets TAA 0.77-1.53x (mean 1.14), SVGF 0.85-2.56x (ratio of means 1.23, flat
             # after the stop: the revealed pixels' shorter history, not a decaying ghost). At this
-            # size the TAA before the history normal test measures 1.49x here and 1.18x as a
+            # size a TAA without the history normal test measures 1.49x here and 1.18x as a
             # ratio of 12 seeds' means: its ghost has faded by +8; the 48-px test below sees it.
             assert tr["ratio_at_8"] <= A.RECOVERY_TOLERANCE, f"{tech}: ghost trail, {tr['ratio_at_8']:.2f}x still level"
         assert res["animation"]["techniques"]["TAA"]["stability"] == pytest.approx(
@@ -231,10 +231,10 @@ def test_animation_compare_cornell_svgf_taa(tmp_path):
 
 def test_taa_pan_ghost_trail_48px():
     """The Cornell pan at 48 px (12 moving frames, 8 held, 3 noise draws): the pan reveals the
-    short box's right side face at a grazing angle; the TAA before 146b53a kept the lit front
-    face's history there (its plane test accepts texels near the edge) and measured 2.01x the
-    still level 8 frames after the stop (4.96x at the stop; 1.48-1.80x over groups of 3 seeds).
-    With the history normal test under motion: 1.07x (1.06-1.11x over groups of 3 seeds;
+    short box's right side face at a grazing angle; a TAA without the history normal test keeps
+    the lit front face's history there (its plane test accepts texels near the edge) and
+    measures 2.01x the still level 8 frames after the stop (4.96x at the stop; 1.48-1.80x over
+    groups of 3 seeds). With the history normal test under motion: 1.07x (1.06-1.11x over groups of 3 seeds;
     single draws 0.95-1.42x). Bound 1.3: between the two, three single-draw sd above this one."""
     pytest.importorskip("bpy")
     pytest.importorskip("moderngl")

@@ -91,7 +91,7 @@ def test_gi_compare_cornell(tmp_path, monkeypatch, capsys):
 
 
 def _check_setup_and_baselines(res, out):
-    """The public contract of issue 8: setup_ms per row, baselines.{cycles, cycles_denoised,
+    """The public contract of the results: setup_ms per row, baselines.{cycles, cycles_denoised,
     eevee} with {spp, time_ms, relmse, flip, ssim}, per-frame times without setup, and an
     equal-error speed-up (or its bound) against every baseline."""
     for e in res["results"]:

@@ -2,9 +2,9 @@
 
 For each light type alone, on a scene of diffuse, glossy and metallic surfaces with a
 black world: Cycles with all bounces off at 1024 spp vs GI Preview's DIRECT accumulated
-over 16 frames (the F12 default). Criterion (issue 2): mean relMSE ``(a-b)^2/(b^2+1e-2)``
+over 16 frames (the F12 default). Criterion: mean relMSE ``(a-b)^2/(b^2+1e-2)``
 <= 0.02 over the pixels that are not in penumbra. The error has converged far below the
-bar by then (measured 2026-12-01, non-penumbra relMSE at 8 / 16 / 64 frames: point 2.2e-4 /
+bar by then (measured non-penumbra relMSE at 8 / 16 / 64 frames: point 2.2e-4 /
 1.6e-4 / 1.8e-5, sun 6.1e-4 / 3.6e-4 / 3.2e-5, world 7.8e-4 / 6.2e-4 / 5.6e-4, many_points
 over all pixels 2.2e-3 / 1.5e-3 / 6.6e-4): a bias has to reach ~14 % to fail, at 16 frames
 as at 64. ``many_points``: 48 small point lights of many colours, more
@@ -167,8 +167,8 @@ def _penumbra_mask(sc) -> tuple[np.ndarray, np.ndarray]:
 
 # All-pixel relMSE bounds for perspective shadow views, between the measured good and bad
 # values (deterministic renders): with shadows.glsl's nearest-texel test limited to touching
-# occluders point 6.92e-4, area_rect 1.82e-3; with the unlimited test of 0b9a9c8, which
-# darkened the shadowed side of every shadow edge, 8.16e-4 and 2.10e-3.
+# occluders point 6.92e-4, area_rect 1.82e-3; with an unlimited nearest-texel test, which
+# darkens the shadowed side of every shadow edge, 8.16e-4 and 2.10e-3.
 SHADOW_EDGE_BOUND = {"point": 7.5e-4, "area_rect": 1.95e-3}
 
 
@@ -212,7 +212,7 @@ def test_emissive_walls_do_not_light_themselves():
     """A closed room whose every wall is diffuse (albedo 0.8) and emits radiance 1: Cycles
     "direct" is emission + one bounce of the other walls = 1.8 everywhere. A point of an
     emissive wall must not receive that wall's own light (its polygon integral lies in the
-    horizon plane); before the fix DIRECT gave ~2.56 (the own wall counted as a full hemisphere)."""
+    horizon plane); counting the own wall as a full hemisphere gives ~2.56."""
     import sys
     sys.path.insert(0, str(Path(__file__).resolve().parent))
     import scenes_probes

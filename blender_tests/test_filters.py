@@ -1,4 +1,4 @@
-"""The denoising filters (issue 11): ATROUS, SVGF, TAA as technique ids (1-spp PT + filter)
+"""The denoising filters: ATROUS, SVGF, TAA as technique ids (1-spp PT + filter)
 and as ``denoiser`` / ``use_taa`` options that end any technique's graph.
 
 Measured against Cycles (full, 256 spp, 40-48 px, cached references):
@@ -87,9 +87,9 @@ def test_svgf_still_quarter_of_pt(scene_name):
         assert np.isfinite(imgs[-1]).all()
         assert sv <= 0.25 * pt_rel, f"SVGF relMSE {sv:.4f} > 1/4 of 1-spp PT's {pt_rel:.4f}"
         # the brightness of the 16 samples it averaged. With the paper's feedback (the first
-        # à-trous iteration as history) SVGF/PT16 was 0.82 on the sun-lit room: the centre-sigma
-        # luminance weights average a bright sample down while its neighbours ignore it, and the
-        # feedback kept that loss; the history is the temporal integration.
+        # à-trous iteration as history) SVGF/PT16 measures 0.82 on the sun-lit room: the
+        # centre-sigma luminance weights average a bright sample down while its neighbours ignore
+        # it, and the feedback keeps that loss; here the history is the temporal integration.
         # Measured here (16 frames from an empty history, 40 px): 0.98 cornell, 0.87 sun-lit room:
         # what remains is the à-trous of a young history (large variance, wide
         # luminance weights), 0.965 once the history is long (bench_filters.py, held frames)
@@ -236,7 +236,7 @@ def test_light_edit_caps_history_instead_of_restarting(tech):
                                                     ("TAA", "turned_history", 2.0, 14.0)])
 def test_sub_pixel_motion_caps_history_where_the_surface_changes(tech, param, capped, full):
     """Sub-pixel camera motion (the Cornell slow pan, 0.22 px/frame at 48 px) caps the history of
-    the pixels whose surface may change under them (SVGF.md / TAA.md, tenth session): SVGF's
+    the pixels whose surface may change under them (SVGF.md / TAA.md): SVGF's
     geometric-edge pixels at edge_history (8, + this frame), TAA's pixels whose kept history
     mostly faces elsewhere at turned_history (1, + this frame). Read from the history-length
     debug views against a session with the parameter at 0: identical while the camera is still,

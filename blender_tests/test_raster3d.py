@@ -1,4 +1,4 @@
-"""The 3D-raster family (issue 10: RSM, LPV) against Cycles: accuracy, leaks, planning,
+"""The 3D-raster family (RSM, LPV) against Cycles: accuracy, leaks, planning,
 stability, debug views.
 
 Small on purpose (48 px, Cycles 128 spp, 8 frames); the q0-q3 sweeps, the 60-frame
@@ -16,7 +16,7 @@ Measured numbers are printed by each test and quoted on docs/techniques/RSM.md a
   geometry volume must cut its own leak to a quarter or less of what it is without it.
 * Moving light and camera: finite, non-negative; the frame-to-frame change is printed
   against Cycles' own and bounded at 1.2x (mean) / 1.5x (max) over 6 large moves (the
-  60-frame bench measures issue 10's 1.0x, see the pages); RSM without its temporal pass
+  60-frame bench measures 0.95-1.0x, see the pages); RSM without its temporal pass
   must change more per frame than with it.
 * LPV: soft cascade membership counts each VPL once.
 * Planning: with no shadow-casting light, or open sky only, the passes are skipped with
@@ -200,7 +200,7 @@ def test_moving_light_and_camera_no_flicker():
             means[label] = np.mean(d)
             print(f"{label} frame-to-frame mean |diff|: ours {np.round(d, 4)} Cycles {np.round(d_cyc, 4)}; "
                   f"mean {np.mean(d) / np.mean(d_cyc):.2f}x, max {max(d) / max(d_cyc):.2f}x Cycles'")
-            # Six large moves; the 60-frame bench measures issue 10's 1.0x (RSM q0-q3
+            # Six large moves; the 60-frame bench measures about 1.0x (RSM q0-q3
             # 0.95-0.985x, LPV q0-q1 0.97-0.99x, see the pages). Measured here: RSM 1.07x mean /
             # 1.18x max, LPV 1.12x / 1.35x; the same six moves started 3 and 6 frames later
             # measured 1.09-1.19x / 1.24-1.87x (RSM) and 1.13-1.22x / 1.37-1.85x (LPV, with
@@ -292,7 +292,7 @@ def test_lpv_cascades_snapped_and_nested():
 def test_rsm_views_keep_whole_brightest_lights_and_say_what_is_left_out():
     """More lights than the atlas's 24 views: whole lights only (no cube cut in the middle),
     suns first, then by power, and the render's warnings say how many were injected (the
-    many_lights demo: 4 of 256; before, the view list was cut at 24 silently)."""
+    many_lights demo: 4 of 256; the view list is not cut at 24 views silently)."""
     from gi_preview.render.passes.rsm import MAX_RSM_VIEWS, rsm_views
     from gi_preview.render.scene_data import Light, LightType
 

@@ -1,4 +1,4 @@
-"""RESTIR_DI (issue 11) on the many-light demo scene (256 coloured point lights + emissive
+"""RESTIR_DI on the many-light demo scene (256 coloured point lights + emissive
 strips), against Cycles direct-only (256 spp, cached):
 
 * equal time per frame against next-event estimation (``baseline_spp`` of the same pass:
@@ -165,9 +165,9 @@ def test_bias_modes_brightness(many_lights):
     rd.close()
     # ray-traced visibility is unbiased; MIS-normalised is darker near shadow edges (measured
     # 0.977 and 0.936 at 40 px). 1/M is biased dark (it counts neighbours whose samples this
-    # pixel cannot see): 0.835 here. Before its defensive sphere-light samples it blew up at
+    # pixel cannot see): 0.835 here. Without its defensive sphere-light samples it blows up at
     # 64 px (6.67x, one pixel 1100x: RESTIR_DI.md); this bound is a regression guard against
-    # such a blow-up (at 40 px the old code happened to read 0.81, so it guards, not proves)
+    # such a blow-up (at 40 px that variant reads 0.81, so it guards, not proves)
     assert abs(means[2] - 1.0) < 0.06, f"ray-traced visibility: {means[2]:.3f} of Cycles"
     assert abs(means[1] - 1.0) < 0.10, f"MIS-normalised: {means[1]:.3f} of Cycles"
     assert 0.6 < means[0] < 1.2, f"1/M: {means[0]:.3f} of Cycles"

@@ -9,13 +9,13 @@ llvmpipe; margins cover the Cycles reference's noise at the spp used here):
   FLIP ~0.13; SSAO relMSE ~0.07, FLIP ~0.14 (the remaining error is what screen space
   cannot see: the gap behind the tall box, the back faces). Thresholds: relMSE <= 0.12,
   FLIP <= 0.20, and the mean AO within 0.12 of Cycles' (ours is brighter, never darker).
-* Since DIRECT lights with the world itself (shadowed by its world-light maps), the
-  techniques add only indirect light and SSR replaces DIRECT's world reflection; DIRECT's
-  own error dropped, so the measured ratios below are against that better baseline.
+* DIRECT lights with the world itself (shadowed by its world-light maps), so the
+  techniques add only indirect light and SSR replaces DIRECT's world reflection; the ratios
+  below are against that DIRECT.
 * SSR on glossy_spheres vs Cycles "one_bounce": measured relMSE ~0.026 against DIRECT's
-  ~0.045 (ratio ~0.58; ~0.46 against the old world-less DIRECT); asserted ratio <= 0.75.
-* SSDO on cornell vs "one_bounce": measured 0.031 against DIRECT's 0.179 (ratio 0.18;
-  0.10 before SSDO traced its off-screen directions through the scene); asserted ratio <= 0.85. SSAO/HBAO there: ~0.080 / ~0.126 (ratios ~0.44 / ~0.69; the
+  ~0.045 (ratio ~0.58); asserted ratio <= 0.75.
+* SSDO on cornell vs "one_bounce": measured 0.031 against DIRECT's 0.179 (ratio 0.18);
+  asserted ratio <= 0.85. SSAO/HBAO there: ~0.080 / ~0.126 (ratios ~0.44 / ~0.69; the
   constant indirect term); <= 0.9.
 * Hard cases: every technique's output is finite and at most 4x the brightest value of
   DIRECT's image (the scene's own maximum radiance: lights seen directly, emission,
@@ -26,23 +26,22 @@ llvmpipe; margins cover the Cycles reference's noise at the spp used here):
   whose surface was hidden before (measured 100 % of 26) and kept on >= 80 % of
   those seen before (measured 99.9 %; no ghosting; the test says why images are not compared).
 
-* Issue 9's reproduction scenes (scenes_screen_space.py; 64 px, 16 frames, Cycles
-  "one_bounce" 256 spp; measured with the issue's fixes, the code before them in brackets,
-  numbers from scripts/bench_screen_space.py --repro):
-  corridor, SSR's screen part (miss_trace 0) masked to the mirror floor and the gold wall 0.231 [0.624],
-  DIRECT's 0.455: asserted <= 0.32 and <= 0.7x DIRECT's, and the image's step across the
-  hit/miss boundaries (found share jumping by > 0.25) 0.083 against Cycles' 0.120 on the
-  same pixel pairs: asserted <= Cycles'; mirror_gradient, SSR on the
-  mirror 0.071 [0.272] (0.0085 with the miss trace, the default since F7; TV 0.043), the reflection's total variation 0.037 [0.073] against Cycles'
-  0.029: asserted relMSE <= 0.14 and TV <= 1.8x Cycles'; bounce_room, SSDO on the ceiling
-  (lit only by the floor) 0.061 [0.215] (0.112 when off-screen directions took the mean of
-  the on-screen ones instead of a scene trace), mean 0.334 [0.232] against Cycles' 0.444:
-  asserted relMSE <= 0.107 (issue 9: at least half of 0.215 gone) and the mean within 30 %.
+* The reproduction scenes (scenes_screen_space.py; 64 px, 16 frames, Cycles "one_bounce"
+  256 spp; numbers from scripts/bench_screen_space.py --repro):
+  corridor, SSR's screen part (miss_trace 0) masked to the mirror floor and the gold wall
+  0.231, DIRECT's 0.455: asserted <= 0.32 and <= 0.7x DIRECT's, and the image's step across
+  the hit/miss boundaries (found share jumping by > 0.25) 0.083 against Cycles' 0.120 on the
+  same pixel pairs: asserted <= Cycles'; mirror_gradient, SSR on the mirror 0.071 (0.0085
+  with the miss trace, the default; TV 0.043), the reflection's total variation 0.037
+  against Cycles' 0.029: asserted relMSE <= 0.14 and TV <= 1.8x Cycles'; bounce_room, SSDO
+  on the ceiling (lit only by the floor) 0.061 (0.112 if off-screen directions take the
+  mean of the on-screen ones instead of a scene trace), mean 0.334 against Cycles' 0.444:
+  asserted relMSE <= 0.107 and the mean within 30 %.
 * SSR's miss trace under motion (corridor dolly, 48 px, one frame per call, vs a still
   32-frame render with the trace): fallback accumulated by ssr_fallback_temporal 0.086 (0.178
   with highlights reprojected by the hit point and one sample per hit), of one frame 0.173:
   asserted <= 0.25, <= 0.75x and <= 0.85x. The trace is SSR's default (miss_trace, rough_trace
-  1 at every level, F7); the corridor test asserts the default <= 0.2 (measured 0.116) and
+  1 at every level); the corridor test asserts the default <= 0.2 (measured 0.116) and
   the screen part alone (miss_trace 0) against the bounds above, and the reflected-point
   reprojection test measures the screen part alone.
 
@@ -121,12 +120,12 @@ def test_indirect_techniques_improve_on_direct_cornell(cornell):
 def test_ssr_improves_on_direct_glossy_spheres():
     """SSR (defaults: the miss trace on) at the product's default 16 F12 frames against Cycles
     one_bounce at 512 spp (48 px). Measured 0.0255 vs DIRECT 0.0499 (0.51x; the screen part
-    alone, miss_trace 0: 0.0292). Its old setting (8 frames against 128 spp) scored the default
+    alone, miss_trace 0: 0.0292). At 8 frames against 128 spp the default scores
     0.78x DIRECT on this seed: the trace's one ray per pixel leaves seed-to-seed spread (over
     five seeds at 8 frames against 1024 spp the default averaged 0.0349 +- 0.0046, 0.0357 +- 0.0053
     with the F12 pass-through of its fallback, and the screen part 0.0396 +- 0.0038; seed 0, the
     tests', was the default's worst of the five), and the 128-spp
-    reference is itself too noisy at 48 px (SSR.md, eighth session)."""
+    reference is itself too noisy at 48 px (SSR.md)."""
     sc = demo_scenes.build_demo("glossy_spheres", resolution=48)
     try:
         sd = _export(sc)
@@ -344,7 +343,7 @@ def test_temporal_rejects_disoccluded_history(cornell):
     assert frac_seen_kept >= 0.8
 
 
-# ------------------------------------------------------------------ issue 9: reproduction scenes
+# ------------------------------------------------------------------ reproduction scenes
 def _repro(name, spp=256):
     sc = repro.build(name, 64)
     sd = _export(sc)
@@ -416,9 +415,9 @@ def test_ssr_mirror_reflects_a_gradient_as_a_gradient():
 def test_ssdo_ceiling_lit_only_by_the_floor():
     """A ceiling lit only by light bouncing off a diffuse floor: SSDO's bounce must reach
     it (directions that leave the screen are traced through the scene, not open) without
-    large blotches. Issue 9's acceptance is half the error before it (0.2149 -> <= 0.107);
-    measured 0.0191 with the traced off-screen radiance shrunk towards the on-screen mean
-    (0.0712 without the shrinkage), so the bound is 0.04 to keep that gain."""
+    large blotches. The acceptance is relMSE <= 0.107; measured 0.0191 with the traced
+    off-screen radiance shrunk towards the on-screen mean (0.0712 without the shrinkage), so
+    the bound is 0.04 to keep that gain."""
     sc, sd, ref, masks = _repro("bounce_room")
     try:
         m = masks["ceiling"]
@@ -428,15 +427,15 @@ def test_ssdo_ceiling_lit_only_by_the_floor():
         print(f"bounce_room ceiling: SSDO relMSE {err:.4f}, mean {ours:.3f} vs Cycles {theirs:.3f}")
         if err > 0.04:
             _dump("bounce_room_SSDO", ours=res.image, cycles=ref)
-        assert err <= 0.04, f"bounce_room ceiling relMSE {err:.4f} (issue 9 acceptance 0.107, measured 0.0191)"
+        assert err <= 0.04, f"bounce_room ceiling relMSE {err:.4f} (acceptance 0.107, measured 0.0191)"
         assert abs(ours - theirs) <= 0.3 * theirs
     finally:
         bpy.data.scenes.remove(sc)
 
 
 def test_ssr_miss_fallback_is_a_composite_argument():
-    """SSR's miss fallback is a constructor argument of its composite (issue 9 point 3:
-    probes or another technique provide it): ``color += ks found + (1 - a) fallback -
+    """SSR's miss fallback is a constructor argument of its composite (probes
+    or another technique provide it): ``color += ks found + (1 - a) fallback -
     replaced``. With DIRECT's reflected direct light as a stand-in fallback, the image
     differs from SSR's default (fallback = its own ``ssr.fallback``: the miss trace's, DIRECT's
     world reflection while ``miss_trace`` is off; replaced = DIRECT's world reflection) by
@@ -478,12 +477,12 @@ def test_ssr_miss_fallback_is_a_composite_argument():
 
 
 def test_ssr_reflections_reproject_by_the_reflected_point():
-    """Under camera motion a reflection moves with the reflected point, not with the mirror
-    (issue 9 point 2): the camera dollies down the corridor, rendered viewport-style (one
+    """Under camera motion a reflection moves with the reflected point, not with the mirror:
+    the camera dollies down the corridor, rendered viewport-style (one
     frame per call, history kept); the reflective surfaces are compared with a fresh render
     at the same camera (no history, no lag). SSR's temporal pass (reprojection by the
     virtual image point, hit distance behind the mirror) lags less than reprojection by the
-    surface's motion (the code before). The screen part is measured alone (``miss_trace`` 0
+    surface's motion. The screen part is measured alone (``miss_trace`` 0
     for all three renders: the miss trace's own fallback and its temporal pass are tested by
     test_ssr_miss_fallback_accumulates_over_time). Measured here (48 px, frames 6-9): 0.068 vs
     0.091 (ratio 0.75; deterministic); asserted <= 0.85x."""
@@ -533,13 +532,12 @@ def test_ssr_miss_fallback_accumulates_over_time():
     The camera dollies down the corridor, one frame per call; frames 7 and 9 are compared,
     masked to the reflective surfaces, with a still 32-frame render of the same settings.
     Measured (48 px, deterministic): temporal 0.0858 vs the fallback of one frame (no temporal
-    pass) 0.173, and vs 0.178 for the sixth session's code (a glossy hit's highlights reprojected
-    by the hit point, one light sample per hit while moving: ``SSR_MISS_HIT_PARALLAX``,
-    ``miss_samples_moving`` 1); asserted <= 0.25, <= 0.75x the one-frame fallback and <= 0.85x
-    the sixth session's, which fail them. (The trace is the default since the seventh session's
-    F7; against Cycles under motion it is closer than the screen part alone, SSR.md.) A NaN
-    history is dropped within one frame. An F12 render passes the fallback through (the
-    session's accumulator averages it; eighth session)."""
+    pass) 0.173, and vs 0.178 for a glossy hit's highlights reprojected by the hit point with
+    one light sample per hit while moving (``SSR_MISS_HIT_PARALLAX``, ``miss_samples_moving``
+    1); asserted <= 0.25, <= 0.75x the one-frame fallback and <= 0.85x the hit-point variant,
+    which fail them. (The trace is the default; against Cycles under motion it is closer than
+    the screen part alone, SSR.md.) A NaN history is dropped within one frame. An F12 render
+    passes the fallback through (the session's accumulator averages it)."""
     from gi_preview.render import techniques
     from gi_preview.render.techniques.ssr import FALLBACK_TEMPORAL
 
@@ -553,7 +551,7 @@ def test_ssr_miss_fallback_accumulates_over_time():
         mask = repro.masks("corridor", sd, repro.material_ids(sd))["reflective"]
         for key, tech in (("ss_mf_truth", "SSR"), *variants.items()):
             session.set_pass_properties(key, {"ssr_trace": {"miss_trace": 1}}, technique=tech, quality=1)
-        # the seventh session's code before: highlights reprojected by the hit, one sample moving
+        # the hit-point variant: highlights reprojected by the hit, one sample while moving
         session.set_pass_properties("ss_mf_hitpar", {"ssr_trace": {"miss_samples_moving": 1}},
                                     technique=SSRHitParallax.id, quality=1)
         errs, moved = _dolly_errors(sd, variants, mask, truth_key="ss_mf_truth", truth_samples=32, at=(6, 8))

@@ -1,9 +1,9 @@
-"""SSDO's picked senders (issue 9, the sun-lit room's speckles).
+"""SSDO's picked senders (the sun-lit room's speckles).
 
-SSDO's bounce on the sun-lit room's walls and ceiling showed isolated bright speckles after
-16 frames: directions (far-field march and near-field points) that met the small, bright sun
+Without picked senders, SSDO's bounce on the sun-lit room's walls and ceiling shows isolated
+bright speckles after 16 frames: directions (far-field march and near-field points) that met the small, bright sun
 patch on the floor, rare and large samples (docs/techniques/SSDO.md, "bright senders"). Each
-receiver now also picks sender pixels in proportion to their flux (``sender_samples``) and
+receiver also picks sender pixels in proportion to their flux (``sender_samples``) and
 combines them with the directions by multiple importance sampling.
 
 Speckle: a pixel of the bounce (the GI_IndirectDiffuse AOV, luminance) brighter than 3x the

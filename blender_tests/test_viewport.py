@@ -1,4 +1,4 @@
-"""Temporal correctness of instances and a viewport that never blocks (issue 8, parts 3a and 4).
+"""Temporal correctness of instances and a viewport that never blocks.
 
 * Instanced motion vectors: two collection instances of one mesh (one object name) moving
   differently between two frames; every pixel's G-buffer motion against the motion computed

@@ -65,19 +65,7 @@ float vx_voxel_size_at(vec3 p) {
 #ifdef VX_SAMPLING
 uniform sampler3D u_vx_radiance;
 uniform float u_vx_opacity_scale;  // opacity bias (>= 1 thickens occluders, against leaks)
-// compile-time switches (defines from passes/vxgi.vx_defines; llvmpipe pays for both sides of
-// a branch on a uniform, so the unused reconstruction is not compiled in):
-// VX_BOX 0: trilinear; 1: box along each face's own axis; 2: box with ramped edges (see vx_sample)
-// VX_OPAQUE_RADIANCE 1: faces weighted by d^2 x opacity for the radiance (see vx_sample)
-#ifndef VX_BOX
-#define VX_BOX 1
-#endif
-#ifndef VX_OPAQUE_RADIANCE
-#define VX_OPAQUE_RADIANCE 1
-#endif
-#if VX_BOX == 2
-uniform float u_vx_box_ramp;       // width in texels of the ramp across a texel boundary (1 = the tent)
-#endif
+uniform float u_vx_box_ramp;       // width in texels of the ramp across a texel boundary (0 = a hard box, 1 = the tent)
 // a face whose weight d_k^2 is below this counts less than fully in the sample's opacity
 // (a cone running within ~18 degrees of a surface's plane is not stopped by it outright)
 #define VX_FACE_W_FULL 0.1
@@ -94,20 +82,19 @@ uniform float u_vx_box_ramp;       // width in texels of the ramp across a texel
 // and the mean (cos^2 of the angle to the wall's normal per sample; the samples inside one
 // wall layer are perfectly correlated, not independent) let oblique cones through walls.
 // Energy audit (closed box, q0): the mean lost 13 % more of E than the max (0.73 -> 0.85).
-// VX_BOX 1 (param axis_box): each face is read at its mip's texel centre along
-// the face's own axis (linear across it), the two mips of a fractional lod each at its own
-// centre and blended. Along the direction a cone crosses a face the opacity is then a box of
-// the texel's width, which is what the step correction 1 - (1-a)^(s/w) assumes: a trilinear
-// tent of a one-voxel wall (opacity 1 at one point only) let e^-2 ~ 14 % of a cone through
-// it, more or less depending on where the wall lay in the texel and on the sample phase.
-// VX_BOX 2 (box_ramp > 0): the box's edges are linear ramps box_ramp texels
-// wide, so the value is continuous in the sample's position; the hard box jumps when a sample
-// crosses a texel boundary as the receiver moves (q1 60 frames: largest step 1.37x -> 1.30x
-// Cycles', mean 0.95x -> 0.88x at 0.5).
-// VX_OPAQUE_RADIANCE (param opaque_radiance): the radiance weights each face by d^2 x its
-// opacity (sum w a^2 L / sum w a^2, L = rgb / a), so the faces that occlude the sample show
-// it; by d^2 alone, the black edge-on faces of a wall crossed obliquely (opacity
-// edge_opacity) dimmed its radiance to cos^2/(cos^2 + 0.1 sin^2) (0.77 L at 60 degrees).
+// Each face is read at its mip's texel centre along the face's own axis (linear across it),
+// the two mips of a fractional lod each at its own centre and blended. Along the direction a
+// cone crosses a face the opacity is then a box of the texel's width, which is what the step
+// correction 1 - (1-a)^(s/w) assumes: a trilinear tent of a one-voxel wall (opacity 1 at one
+// point only) let e^-2 ~ 14 % of a cone through it, more or less depending on where the wall
+// lay in the texel and on the sample phase. The box's edges are linear ramps u_vx_box_ramp
+// (param box_ramp) texels wide, so the value is continuous in the sample's position; the hard
+// box (0) jumps when a sample crosses a texel boundary as the receiver moves (q1 60 frames:
+// largest step 1.37x -> 1.30x Cycles', mean 0.95x -> 0.88x at 0.5).
+// The radiance weights each face by d^2 x its opacity (sum w a^2 L / sum w a^2, L = rgb / a),
+// so the faces that occlude the sample show it; by d^2 alone, the black edge-on faces of a
+// wall crossed obliquely (opacity edge_opacity) dimmed its radiance to cos^2/(cos^2 + 0.1 sin^2)
+// (0.77 L at 60 degrees).
 vec4 vx_sample(vec3 p, float diam, vec3 d, out float width) {
     width = 0.0;
     float n = float(u_vx_n);
@@ -116,8 +103,8 @@ vec4 vx_sample(vec3 p, float diam, vec3 d, out float width) {
     for (int c = 0; c < u_vx_cascades; ++c) {
         vec4 o = u_vx_origin[c];
         float lod = log2(max(diam / o.w, 1.0));
-        // a cascade that follows the camera is read only at the mips its snap keeps in place
-        // (aligned_mips); wider footprints go to the next cascade (its mip one level down)
+        // a cascade that follows the camera is read only at the mips its snap keeps in place;
+        // wider footprints go to the next cascade (its mip one level down)
         float top = c < u_vx_cascades - 1 ? float(min(u_vx_levels, u_vx_moving_levels) - 1) : max_lod;
         if (lod > top && c < u_vx_cascades - 1) continue;  // a coarser cascade filters wider
         lod = min(lod, top);
@@ -135,36 +122,26 @@ vec4 vx_sample(vec3 p, float diam, vec3 d, out float width) {
         for (int k = 0; k < 3; ++k) {
             if (w[k] < 1e-4) continue;
             float slab = float(f[k] * u_vx_cascades + c);
-            vec4 t;
-#if VX_BOX >= 1
             // box along the face's own axis: each of the two mips is read at its own texel
             // centre along axis k (linear across it), blended by the lod's fraction
-            t = vec4(0.0);
+            vec4 t = vec4(0.0);
             for (int j = 0; j < 2; ++j) {
                 float lj = lo + float(j);
                 float wj = j == 0 ? 1.0 - fr : fr;
                 if (wj <= 0.0) continue;
                 float m = n / exp2(lj);  // texels per side at this mip
                 vec3 lk = l;
-#if VX_BOX == 1
-                lk[k] = (clamp(floor(l[k] * m), 0.0, m - 1.0) + 0.5) / m;
-#else
                 // box with linear edges: flat over the texel's middle, a ramp u_vx_box_ramp
-                // texels wide across each texel boundary (continuous in the sample's position)
+                // texels wide across each texel boundary (continuous in the sample's position);
+                // 0: the hard box, the texel holding the sample (a sample on a boundary reads
+                // the upper one)
                 float x = l[k] * m - 0.5, i = floor(x);
-                float e = clamp((x - i - 0.5) / u_vx_box_ramp + 0.5, 0.0, 1.0);
+                float e = u_vx_box_ramp > 0.0 ? clamp((x - i - 0.5) / u_vx_box_ramp + 0.5, 0.0, 1.0)
+                                              : step(0.5, x - i);
                 lk[k] = clamp((i + e + 0.5) / m, 0.5 / m, 1.0 - 0.5 / m);
-#endif
                 t += wj * textureLod(u_vx_radiance, vec3(lk.xy, (slab + lk.z) / slabs), lj);
             }
-#else
-            t = textureLod(u_vx_radiance, vec3(l.xy, (slab + l.z) / slabs), lod);
-#endif
-#if VX_OPAQUE_RADIANCE
             r += w[k] * t.a * t;
-#else
-            r += w[k] * t;
-#endif
             amax = max(amax, t.a * min(1.0, w[k] / VX_FACE_W_FULL));
         }
         if (r.a > 1e-6) r = vec4(r.rgb / r.a, 1.0) * amax;

@@ -59,8 +59,7 @@ uniform float u_step;
 uniform float u_max_distance;
 uniform int u_mesh_exact_max;
 uniform uint u_sample;
-uniform int u_directional_opacity;  // level-0 opacity towards D: |n.D| (else 1)
-uniform float u_edge_opacity;       // smallest level-0 opacity of an occupied voxel (directional opacity)
+uniform float u_edge_opacity;       // smallest level-0 opacity of an occupied voxel towards any direction
 uniform float u_audit;  // > 0: energy audit, both sides of every surface show this radiance
 uniform int u_cull;          // 1: lights out of a voxel's range by u_cull_samples power samples (else every light)
 uniform int u_cull_samples;
@@ -257,15 +256,15 @@ void main() {
     // nothing: the mean of its two sides would let a cone grazing a zero-thickness roof or
     // wall see half of its sun-lit outside (sunlit_room 2.7x Cycles) or of the lit room
     // behind it. Coverage sums over buckets are capped at 1 (radiance renormalised).
-    // The opacity keeps a floor of u_edge_opacity (or is 1 without directional opacity): an
-    // edge-on wall shows black at that opacity (0.05 let cones grazing walls and roofs
-    // through; 0.3 measured: sunlit_room 1.80 -> 1.36x Cycles, thin-wall leak 0.047 -> 0.027).
+    // The opacity keeps a floor of u_edge_opacity: an edge-on wall shows black at that
+    // opacity (0.05 let cones grazing walls and roofs through; 0.3 measured: sunlit_room
+    // 1.80 -> 1.36x Cycles, thin-wall leak 0.047 -> 0.027).
     for (int f = 0; f < 6; ++f) {
         vec3 F = front[f] / max(af[f], 1.0), B = back[f] / max(ab[f], 1.0);
         float a1 = min(af[f], 1.0), a2 = min(ab[f], 1.0);
         vec3 L = F + (1.0 - a1) * B;
         float a = a1 + (1.0 - a1) * a2;
-        a = u_directional_opacity == 1 ? max(a, u_edge_opacity) : 1.0;
+        a = max(a, u_edge_opacity);
         imageStore(o_radiance, ivec3(gid.xy, (f * C) * N + gid.z), vec4(L, a));
     }
 }

@@ -262,7 +262,6 @@ GATHER_PARAMS = (
     Param("radius", 1.0, 0.05, 1.5, "sampling disk radius, fraction of the RSM side (1.42 = whole map)"),
     Param("min_distance", 0.1, 0.0, 10.0, "distance clamp d_min of the 1/d^4 kernel (scene units)"),
     Param("exact_weights", True, doc="weight samples by the exact inverse density 2ξ1 (default; False = the paper's ξ1², biased dark: cornell 0.81-0.86x)"),
-    Param("pattern_windows", False, doc="each frame takes the next window of the R2 sequence (True) instead of restarting it per accumulation (see bind_pattern)"),
 )
 
 
@@ -278,18 +277,17 @@ def bind_rsm(rc, prog, units: Units, gather: Pass):
     set_uniform(prog, "u_exact_weights", 1 if gather["exact_weights"] else 0)
 
 
-def bind_pattern(prog, frame, gather):
-    """The VPL pattern's index. Default: the frame's index within the current accumulation,
-    so an accumulation (F12, a still viewport) walks consecutive windows of one R2 sequence
+def bind_pattern(prog, frame):
+    """The VPL pattern's index: the frame's index within the current accumulation, so an
+    accumulation (F12, a still viewport) walks consecutive windows of one R2 sequence
     (rsm_common.glsl) and converges, while a moving view or light (each frame a new
     accumulation) keeps window 0: the pattern's structured error does not change from frame
-    to frame. ``pattern_windows``: the frame's sample counter instead, so a moving view also
-    walks the windows and the temporal pass averages 8 of them; that flickers more (60 moving
-    frames, q0: 1.24x Cycles' frame-to-frame change against 1.08x with window 0: the
-    8-frame running mean leaves an eighth of each new window's error as flicker; without the
-    temporal pass a new pattern every frame measures 5.3x)."""
-    idx = frame.sample if gather["pattern_windows"] else frame.index
-    set_uniform(prog, "u_pattern", int(idx) & 0xFFFFFFFF)
+    to frame. Walking the windows by the frame's sample counter instead (the temporal pass
+    then averages 8 of them) flickers more: 60 moving frames, q0, 1.24x Cycles' frame-to-frame
+    change against 1.08x with window 0 (the 8-frame running mean leaves an eighth of each new
+    window's error as flicker; without the temporal pass a new pattern every frame measures
+    5.3x)."""
+    set_uniform(prog, "u_pattern", int(frame.index) & 0xFFFFFFFF)
 
 
 class RSMGatherPass(Pass):
@@ -319,7 +317,7 @@ class RSMGatherPass(Pass):
         units = Units(1)
         bind_gbuffer(rc, prog, units)
         bind_rsm(rc, prog, units, self)
-        bind_pattern(prog, frame, self)
+        bind_pattern(prog, frame)
         size = scaled(rc.size, float(self["low_scale"]))
         set_uniform(prog, "u_low_size", size)
         rc.resources["rsm.low"].bind_to_image(0, read=False, write=True)
@@ -349,7 +347,7 @@ class RSMResolvePass(Pass):
         units = Units(1)
         bind_gbuffer(rc, prog, units)
         bind_rsm(rc, prog, units, self.gather)
-        bind_pattern(prog, frame, self.gather)
+        bind_pattern(prog, frame)
         units.tex(prog, "u_low", rc.resources["rsm.low"])
         g = self.gather
         set_uniform(prog, "u_low_size", scaled(rc.size, float(g["low_scale"])))

@@ -5,9 +5,9 @@
   of the previous one's; the coarsest covers the scene's bounds, the finer ones are
   centred on the camera and clamped into the scene's box; corners are snapped to 4 voxels
   of their cascade (a camera move shifts a grid by whole voxels, and mip levels 0-2 keep
-  their cells; with ``aligned_mips``, the default, a moving cascade is read at those levels
-  only and wider footprints go to the next cascade, so a snap does not shift the texels a
-  cone reads: the coarsest cascade never moves). Conservative voxelisation by geometry-shader dominant-axis projection of
+  their cells; a moving cascade is read at those levels only and wider footprints go to the
+  next cascade, so a snap does not shift the texels a cone reads: the coarsest cascade never
+  moves). Conservative voxelisation by geometry-shader dominant-axis projection of
   each triangle, enlarged by half a pixel (plus ``thickness`` voxels) per edge, then an
   exact triangle/box overlap test for every voxel of the fragment's column
   (``shaders/vxgi/voxelize.*``). Chosen over a compute voxeliser because llvmpipe's
@@ -68,6 +68,10 @@ DIFFUSE, GLOSSY, AO, DEBUG = "vxgi.diffuse", "vxgi.glossy", "vxgi.ao", "vxgi.deb
 VX_REC = 1 + 6 * 8  # words per voxel record: bucket mask + 6 orientation buckets (shaders/vxgi/common.glsl)
 MAX_CASCADES = 4
 SNAP = 4  # voxels: the cascades' corners move in steps of this many of their voxels
+# mip levels a cascade that follows the camera is read at: those whose texels the SNAP-voxel
+# steps keep in place (levels 0-2); wider footprints read the next cascade. Otherwise a snap
+# shifts the coarser mips' texels by a fraction and the indirect light steps
+MOVING_LEVELS = int(math.log2(SNAP)) + 1
 BINDING_RECORDS = 5
 BINDING_LIST = 4
 BINDING_CULL = 6    # inject.comp's light culling table
@@ -92,7 +96,7 @@ class VoxelGrid:
     def __init__(self, origins=(), n: int = 0, moving_levels: int = 0):
         self.origins, self.n = list(origins), int(n)
         # mip levels the cascades that follow the camera (all but the coarsest) may be read at
-        # (0: all of them); see VoxelizePass's aligned_mips
+        # (0: all of them); see MOVING_LEVELS
         self.moving_levels = int(moving_levels)
 
     @property
@@ -185,10 +189,6 @@ class VoxelizePass(Pass):
         Param("cascades", 2, 1, MAX_CASCADES, "cascades centred on the camera (voxel size doubles)"),
         Param("voxel_size", 0.0, 0.0, 100.0, "finest voxel size (0 = the coarsest cascade holds the scene)"),
         Param("thickness", 1.0, 0.0, 2.0, "voxelisation dilation in voxels (thicker walls against leaks)"),
-        Param("aligned_mips", True, doc="the cascades that follow the camera (all but the coarsest) are read "
-              "only at the mips whose texels their 4-voxel snap keeps in place (levels 0-2); wider footprints "
-              "read the next cascade. Otherwise a snap shifts their coarser mips' texels by a fraction and the "
-              "indirect light steps"),
     )
     quality_ladder = ({"resolution": 32}, {"resolution": 48}, {"resolution": 64}, {"resolution": 96})
 
@@ -223,7 +223,7 @@ class VoxelizePass(Pass):
         n, C = int(self["resolution"]), int(self["cascades"])
         fresh = self._ensure(rc, n, C)
         grid = VoxelGrid(voxel_cascades(rc.scene.scene, frame, n, C, float(self["voxel_size"]), snap=SNAP), n,
-                         int(math.log2(SNAP)) + 1 if self["aligned_mips"] else 0)
+                         MOVING_LEVELS)
         gs = rc.scene
         v = gs.versions
         key = (id(gs), v["geometry"], v["transforms"], v["materials"], v["textures"], grid.array().tobytes(),
@@ -287,28 +287,15 @@ CONE_PARAMS = (
     Param("side_angle", 60.0, 20.0, 70.0, "angle of the five side cones from the normal (degrees)"),
     Param("footprint_cap", 0.35, 0.0, 4.0, "diffuse cones' footprint diameter <= this x the sample's height "
           "over the receiver's plane (0 = off): coarse mips never reach back over the receiver's own surface"),
-    Param("axis_box", True, doc="read each directional face at its mip's texel centre along the face's own axis "
-          "(a box, not a trilinear tent, along the direction a cone crosses it: a one-voxel wall stops a cone "
-          "wherever it lies in a texel; off = trilinear)"),
-    Param("box_ramp", 0.5, 0.0, 1.0, "axis_box only: width (in texels) of a linear ramp across each texel "
+    Param("box_ramp", 0.5, 0.0, 1.0, "each directional face is read as a box along its own axis (a one-voxel "
+          "wall stops a cone wherever it lies in a texel): width (in texels) of a linear ramp across each texel "
           "boundary along the face's axis (0 = a hard box, whose value jumps when a cone sample crosses a "
           "boundary as the camera or receiver moves; 1 = the trilinear tent). 0.5 against 0: q1 60-frame "
           "largest step 1.37x -> 1.30x Cycles', mean 0.95x -> 0.88x (q0: largest 1.23x -> 1.46x, mean 0.93x -> "
           "0.87x); Cornell q2 one-bounce 0.925 -> 0.928"),
-    Param("opaque_radiance", True, doc="a sample's radiance weights its three faces by d^2 x opacity (the faces "
-          "that occlude it show it), not by d^2 alone: the black edge-on faces of a wall crossed obliquely "
-          "(edge_opacity) do not dim its radiance (off = weighted by d^2 alone)"),
     Param("audit_radiance", 0.0, 0.0, 1e3, "energy audit (tests): > 0 = both sides of every voxelised surface "
           "show this radiance (no lights, no bounce) and GI_IndirectDiffuse holds E/pi (albedo 1); 0 = off"),
 )
-
-
-def vx_defines(p) -> dict:
-    """The compile-time switches of vx_sample (shaders/vxgi/common.glsl) from a pass's
-    axis_box / box_ramp / opaque_radiance params: llvmpipe runs both sides of a branch on a
-    uniform, so the reconstruction not in use is left out of the program instead."""
-    box = 0 if not p["axis_box"] else (2 if p["box_ramp"] > 0.0 else 1)
-    return {"VX_BOX": box, "VX_OPAQUE_RADIANCE": 1 if p["opaque_radiance"] else 0}
 
 
 class VoxelInjectPass(Pass):
@@ -329,10 +316,9 @@ class VoxelInjectPass(Pass):
         Param("multi_bounce", True, doc="inject last frame's indirect irradiance (and sky light) into the voxels"),
         Param("shadow_offset", 0.5, 0.0, 4.0, "shadow lookups start this many voxels off the voxel's surface"),
         Param("mesh_exact_max", 64, 0, 256, "emissive meshes up to this many triangles are integrated exactly"),
-        Param("directional_opacity", True, doc="level-0 opacity towards each direction = the surface's "
-              "projected coverage |n.D|, at least edge_opacity (else 1: opaque from every side)"),
         Param("edge_opacity", 0.1, 0.0, 1.0, "smallest level-0 opacity of an occupied voxel towards any "
-              "direction (an edge-on surface shows black at this opacity; against leaks)"),
+              "direction (the opacity towards a direction is the surface's projected coverage |n.D|: an "
+              "edge-on surface shows black at this opacity; against leaks)"),
         Param("reset_bounces", 6, 1, 16, "injection runs within the frame after a history reset (first frame, "
               "camera cut, parameter change), one bounce more each: the volume starts converged instead of "
               "building up one bounce per frame (1 = that build-up)"),
@@ -420,7 +406,7 @@ class VoxelInjectPass(Pass):
         grid: VoxelGrid = res[GRID]
         scene = rc.scene.scene
         n, C = grid.n, grid.cascades
-        prog = rc.programs.compute("vxgi/inject.comp", vx_defines(self))
+        prog = rc.programs.compute("vxgi/inject.comp")
         rc.scene.bind(prog)
         prev = self.prev_grid if (self.history_valid and self.prev_grid is not None
                                   and self.prev_grid.n == n and self.prev_grid.cascades == C) else None
@@ -450,7 +436,6 @@ class VoxelInjectPass(Pass):
         set_uniform(prog, "u_normal_offset", float(self["normal_offset"]))
         set_uniform(prog, "u_step", float(self["step"]))
         set_uniform(prog, "u_mesh_exact_max", int(self["mesh_exact_max"]))
-        set_uniform(prog, "u_directional_opacity", 1 if self["directional_opacity"] else 0)
         set_uniform(prog, "u_edge_opacity", float(self["edge_opacity"]))
         set_uniform(prog, "u_vx_cap", float(self["footprint_cap"]))
         set_uniform(prog, "u_vx_side_angle", float(np.radians(self["side_angle"])))
@@ -582,7 +567,7 @@ class VoxelTracePass(Pass):
 
     def execute(self, rc, frame):
         res = rc.resources
-        prog = rc.programs.compute("vxgi/trace.comp", vx_defines(self))
+        prog = rc.programs.compute("vxgi/trace.comp")
         rc.scene.bind(prog)
         bind_frame(rc, prog, frame)
         units = Units(1)

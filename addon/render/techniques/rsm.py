@@ -17,7 +17,6 @@ Compared with Cycles "one_bounce". See passes/rsm.py and docs/techniques/RSM.md.
 | radius | 0.05–1.5 | sampling disk radius, fraction of the RSM side |
 | min_distance | 0–10 | distance clamp d_min of the kernel (scene units) |
 | exact_weights | bool | exact inverse-density weights (2ξ1) instead of the paper's ξ1² |
-| pattern_windows | bool | a moving view walks the R2 windows too (measured: more flicker) |
 | low_scale | 0.125–1 | resolution of the first gather |
 | normal_tolerance, plane_tolerance | | when interpolation is accepted |
 

@@ -28,10 +28,11 @@ docs/techniques/VXGI.md.
 
 Accuracy (64 px, Cycles full, 4 frames): Cornell mean 0.97 / 1.01 / 0.91 / 0.87 of Cycles' at
 q0-q3, relMSE 0.062 / 0.060 / 0.048 / 0.044 (DIRECT 0.278); sun-lit room relMSE 0.081 / 0.038 /
-0.024 / 0.024 (DIRECT 0.084). axis_box and opaque_radiance keep walls opaque and bright at the
-cost of a small thin-wall leak; box_ramp 0.5 keeps cone samples continuous under motion;
-aligned_mips reads a moving cascade at mips 0-2 only, so its 4-voxel snap does not shift the
-coarser mips. The largest frame-to-frame steps left sit on G-buffer edges. Energy audit
+0.024 / 0.024 (DIRECT 0.084). Each directional face is read as a box along its own axis and a
+sample's radiance weights its faces by opacity, which keeps walls opaque and bright at the cost
+of a small thin-wall leak; box_ramp 0.5 (a ramp across texel boundaries) keeps cone samples
+continuous under motion; a moving cascade is read at mips 0-2 only, so its 4-voxel snap does
+not shift the coarser mips. The largest frame-to-frame steps left sit on G-buffer edges. Energy audit
 (closed-box furnace, ideal 1): 0.69 at the defaults, 0.87 with edge opacity 0
 (docs/techniques/VXGI.md).
 
