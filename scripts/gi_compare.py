@@ -539,13 +539,15 @@ def run_animation(opts, *, pkg=None, session=None, scene=None) -> dict:
         f"frames; Cycles {spec.ref_spp} spp{' + OIDN' if spec.ref_denoise else ''} per frame; {', '.join(wanted)}")
     res = A.run(scene, spec, wanted, reference=mods["reference"], export=mods["export"], session=session,
                 width=w, height=h, quality=quality, cache_dir=opts.cache, use_cache=not opts.no_cache, log=log)
+    gl_info = importlib.import_module(pn + ".render.gl").get_gl().info
     images = A.write_outputs(res, out, imageio=mods["imageio"], metrics=mods["metrics"],
                              title=f"{scene.name}: {spec.motion}, {w}x{h}")
     results = _clean_json({"scene": scene.name, "resolution": [w, h], "mode": "animation",
                            "run": {"date": datetime.datetime.now().isoformat(timespec="seconds"),
                                    "blender": bpy.app.version_string, "animation": spec.motion,
                                    "resolution": f"{w}x{h}", "ref_spp": spec.ref_spp,
-                                   "ref_denoise": opts.anim_ref_denoise},
+                                   "ref_denoise": opts.anim_ref_denoise, "gl_renderer": gl_info.get("GL_RENDERER"),
+                                   "gl_version": gl_info.get("GL_VERSION")},
                            "reference_settings": getattr(mods["reference"], "FAIR_SETTINGS_SUMMARY", ""),
                            "entries": [], "animation": res["animation"]})
     with open(os.path.join(out, "results.json"), "w", encoding="utf-8") as f:

@@ -180,7 +180,8 @@ img.thumb{width:64px;height:auto;display:block;border:1px solid #999}
 #summary th[aria-sort=ascending]::after{content:" \\25B2"} #summary th[aria-sort=descending]::after{content:" \\25BC"}
 #summary td{vertical-align:middle} #summary td:not(.l){white-space:nowrap}
 .viewers{display:flex;flex-wrap:wrap;gap:8px 28px;align-items:flex-start}
-.viewer{margin:6px 0 18px;max-width:100%} .viewer h3{margin-top:6px} .viewer .bar{font-size:13px;margin-bottom:6px;display:flex;gap:8px;align-items:center}
+.viewer{margin:6px 0 18px;max-width:100%} .viewer h3{margin-top:6px}
+.viewer .bar{font-size:13px;margin-bottom:6px;display:flex;gap:8px;align-items:center}
 .viewer button{font-size:12px} .viewer button.on{background:#333;color:#fff}
 .stage{position:relative;max-width:100%;border:1px solid #999;cursor:pointer;outline:none;touch-action:none}
 .stage:focus{box-shadow:0 0 0 2px #48f}
@@ -659,13 +660,11 @@ def build_html(*, title: str, results: dict, images: dict | None = None, chart_s
     if results.get("animation"):
         from .animation import report_html
         p.append(report_html(results["animation"], images))
-    p.append("<h2>Details</h2>")
-    p += _metrics_table(entries)
-    p += _speedup_table(results, entries, ref_kind)
-    p += _entry_details(entries, images, colorbar_png, legend or {})
-    p += _baselines(results, images)
-    p += _references(results, images)
-    p += _run_settings(results)
+    details = ((_metrics_table(entries) if entries else []) + _speedup_table(results, entries, ref_kind)
+               + _entry_details(entries, images, colorbar_png, legend or {}) + _baselines(results, images)
+               + _references(results, images) + _run_settings(results))
+    if details:
+        p += ["<h2>Details</h2>"] + details
     p += [f"<script>{_JS}</script>", "</body></html>"]
     return "\n".join(p)
 
