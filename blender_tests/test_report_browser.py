@@ -100,7 +100,7 @@ def test_report_in_browser(run_dir, tmp_path):
 
 
 @pytest.mark.parametrize("statement, failure", [(FLIP, "flip did not change the displayed image"),
-                                                (SORT, "relMSE not")])
+                                                (SORT, "relMSE not")], ids=["flip", "sort"])
 def test_selftest_catches_a_broken_page(run_dir, tmp_path, statement, failure):
     """The same report with the viewer's flip (or the table's re-ordering) removed: the
     self-check reports the failure instead of "ok"."""
