@@ -60,6 +60,7 @@ from __future__ import annotations
 
 import argparse
 import datetime
+import hashlib
 import importlib
 import json
 import math
@@ -388,6 +389,7 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
         imageio.write_exr(os.path.join(out, base + ".exr"), img)
         imageio.write_png(os.path.join(out, base + ".png"), metrics.view_standard(img))
         ours_png = imageio.png_bytes(metrics.view_standard(img))
+        image_sha256 = hashlib.sha256(np.ascontiguousarray(img).tobytes()).hexdigest()  # identical images fold
         # per-effect error: an effect pass against the Cycles reference of just that effect,
         # when this run rendered it (direct light: GI_Direct + Emit vs 'direct'; AO: GI_AO vs 'ao')
         aovs = getattr(res, "aovs", {}) or {}
@@ -414,6 +416,7 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
                            "first_render_ms": warm_ms, "source": setup_source},
                  "relmse": m["relmse"], "flip": m["flip"], "flip_ldr": m["flip_ldr"], "ssim": m["ssim"],
                  "psnr": m["psnr"], "nonfinite_pixels": m["nonfinite_pixels"],
+                 "image_sha256": image_sha256,
                  "effects": list(getattr(res, "effects", []) or []),
                  "skipped_passes": [s.as_dict() if hasattr(s, "as_dict") else dict(s)
                                     for s in (getattr(res, "skipped_passes", []) or [])],
@@ -456,6 +459,7 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
                 "ref_spp": opts.ref_spp, "reference_mode": opts.reference, "resolution": f"{w}x{h}",
                 "device": "GI Preview on {} ({}); Cycles on the CPU; EEVEE on Blender's own OpenGL context".format(
                     gl.get_gl().info.get("GL_RENDERER"), gl.get_gl().info.get("GL_VERSION")),
+                "gl_renderer": gl.get_gl().info.get("GL_RENDERER"), "gl_version": gl.get_gl().info.get("GL_VERSION"),
                 "baselines": ",".join(baselines)},
         "reference": {**refs[primary].info()},
         "references": {k: r.info() for k, r in refs.items()},
@@ -535,13 +539,15 @@ def run_animation(opts, *, pkg=None, session=None, scene=None) -> dict:
         f"frames; Cycles {spec.ref_spp} spp{' + OIDN' if spec.ref_denoise else ''} per frame; {', '.join(wanted)}")
     res = A.run(scene, spec, wanted, reference=mods["reference"], export=mods["export"], session=session,
                 width=w, height=h, quality=quality, cache_dir=opts.cache, use_cache=not opts.no_cache, log=log)
+    gl_info = importlib.import_module(pn + ".render.gl").get_gl().info
     images = A.write_outputs(res, out, imageio=mods["imageio"], metrics=mods["metrics"],
                              title=f"{scene.name}: {spec.motion}, {w}x{h}")
     results = _clean_json({"scene": scene.name, "resolution": [w, h], "mode": "animation",
                            "run": {"date": datetime.datetime.now().isoformat(timespec="seconds"),
                                    "blender": bpy.app.version_string, "animation": spec.motion,
                                    "resolution": f"{w}x{h}", "ref_spp": spec.ref_spp,
-                                   "ref_denoise": opts.anim_ref_denoise},
+                                   "ref_denoise": opts.anim_ref_denoise, "gl_renderer": gl_info.get("GL_RENDERER"),
+                                   "gl_version": gl_info.get("GL_VERSION")},
                            "reference_settings": getattr(mods["reference"], "FAIR_SETTINGS_SUMMARY", ""),
                            "entries": [], "animation": res["animation"]})
     with open(os.path.join(out, "results.json"), "w", encoding="utf-8") as f:

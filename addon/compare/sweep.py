@@ -205,6 +205,27 @@ _CURVE_STYLES = [("#444444", "", "circle", "-o"), ("#111111", "7 3", "triangle",
                  ("#888888", "2 3", "diamond", ":D"), ("#555555", "10 3 2 3", "square", "-.s")]
 
 
+_CHAR_W = 6.2  # approximate width of an 11 px sans-serif character, for label boxes
+
+
+def _segment_hits_box(sg, bx) -> bool:
+    """Whether the line segment (x0, y0, x1, y1) crosses the box (x0, y0, x1, y1) (Liang-Barsky)."""
+    x0, y0, x1, y1 = sg
+    dx, dy = x1 - x0, y1 - y0
+    t0, t1 = 0.0, 1.0
+    for p, q in ((-dx, x0 - bx[0]), (dx, bx[2] - x0), (-dy, y0 - bx[1]), (dy, bx[3] - y0)):
+        if p == 0:
+            if q < 0:
+                return False
+        elif p < 0:
+            t0 = max(t0, q / p)
+        else:
+            t1 = min(t1, q / p)
+        if t0 > t1:
+            return False
+    return True
+
+
 def _curve_sets(curve, metric: str) -> list[tuple[str, list[tuple[float, float, float]]]]:
     """``curve`` as [(label, finite tuples sorted by time)]: a list is one curve labelled
     "Cycles (spp)"; a dict maps legend labels to curves (one per baseline)."""
@@ -228,7 +249,12 @@ def chart_svg(points, curve, *, metric: str = "relMSE", title: str = "",
     sets = _curve_sets(curve, metric.lower())
     xs = [p["time_ms"] for p in pts] + [c[1] for _, cur in sets for c in cur]
     ys = [p["error"] for p in pts] + [c[2] for _, cur in sets for c in cur]
-    ml, mr, mt, mb = 70, 150, 40, 55
+    techs = []
+    for p in pts:
+        if p["technique"] not in techs:
+            techs.append(p["technique"])
+    longest = max([len(label) for label, _ in sets] + [len(str(t)) + 6 for t in techs] + [10])
+    ml, mr, mt, mb = 70, max(150, 40 + int(_CHAR_W * longest)), 40, 55
     pw, ph = width - ml - mr, height - mt - mb
     parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
              f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="11">',
@@ -275,50 +301,72 @@ def chart_svg(points, curve, *, metric: str = "relMSE", title: str = "",
             return f'<rect x="{x - 3:.1f}" y="{y - 3:.1f}" width="6" height="6" fill="{col}"/>'
         return f'<circle cx="{x:.1f}" cy="{y:.1f}" r="3" fill="{col}"/>'
 
+    # every label is placed where it overlaps no marker, no line and no other label, inside
+    # the plot; a technique label that finds no such place is left to the legend
+    boxes: list[tuple[float, float, float, float]] = []
+    segments: list[tuple[float, float, float, float]] = []
+    curve_labels = []
     for k, (label, cur) in enumerate(sets):
         col, dash, mk, _ = _CURVE_STYLES[k % len(_CURVE_STYLES)]
         if not cur:
             continue
-        d = " ".join(f"{'M' if i == 0 else 'L'}{X(c[1]):.1f},{Y(c[2]):.1f}" for i, c in enumerate(cur))
+        xy = [(X(c[1]), Y(c[2])) for c in cur]
+        d = " ".join(f"{'M' if i == 0 else 'L'}{x:.1f},{y:.1f}" for i, (x, y) in enumerate(xy))
         da = f' stroke-dasharray="{dash}"' if dash else ""
         parts.append(f'<path d="{d}" fill="none" stroke="{col}" stroke-width="2"{da}/>')
-        for c in cur:
-            parts.append(marker(mk, X(c[1]), Y(c[2]), col))
-            parts.append(f'<text x="{X(c[1]) + 5:.1f}" y="{Y(c[2]) - 5:.1f}" fill="{col}" '
-                         f'font-size="9">{c[0]:g}</text>')
-    # technique points
-    techs = []
-    for p in pts:
-        if p["technique"] not in techs:
-            techs.append(p["technique"])
-    placed: list[tuple[float, float, float, float]] = []  # label boxes, to avoid overlaps
-
-    def free(bx):
-        return all(bx[0] >= o[2] or bx[2] <= o[0] or bx[1] >= o[3] or bx[3] <= o[1] for o in placed)
-
+        segments += [(*a, *b) for a, b in zip(xy, xy[1:])]
+        for c, (x, y) in zip(cur, xy):
+            parts.append(marker(mk, x, y, col))
+            boxes.append((x - 4, y - 4, x + 4, y + 4))
+            curve_labels.append((x, y, col, f"{c[0]:g}"))
     markers = []
     for i, tech in enumerate(techs):
         col = _PALETTE[i % len(_PALETTE)]
         tp = sorted((p for p in pts if p["technique"] == tech), key=lambda p: (p.get("quality") or 0))
+        xy = [(X(p["time_ms"]), Y(p["error"])) for p in tp]
         if len(tp) > 1:
-            d = " ".join(f"{'M' if j == 0 else 'L'}{X(p['time_ms']):.1f},{Y(p['error']):.1f}"
-                         for j, p in enumerate(tp))
+            d = " ".join(f"{'M' if j == 0 else 'L'}{x:.1f},{y:.1f}" for j, (x, y) in enumerate(xy))
             parts.append(f'<path d="{d}" fill="none" stroke="{col}" stroke-dasharray="4 3"/>')
-        for p in tp:
-            x, y = X(p["time_ms"]), Y(p["error"])
+            segments += [(*a, *b) for a, b in zip(xy, xy[1:])]
+        for p, (x, y) in zip(tp, xy):
             parts.append(f'<rect x="{x - 4:.1f}" y="{y - 4:.1f}" width="8" height="8" fill="{col}"/>')
-            placed.append((x - 4, y - 4, x + 4, y + 4))
-            markers.append((x, y, col, f"{tech} q{p.get('quality')}" if p.get("quality") is not None
-                            else str(tech)))
-    for x, y, col, label in markers:
-        lw = 6.2 * len(label)
-        for dx, dy in ((7, 4), (7, 16), (7, -8), (-7 - lw, 4), (7, 28), (-7 - lw, 16), (-7 - lw, -8),
-                       (7, -20), (-7 - lw, 28), (-7 - lw, -20)):
-            bx = (x + dx, y + dy - 10, x + dx + lw, y + dy + 2)
-            if free(bx):
+            boxes.append((x - 4, y - 4, x + 4, y + 4))
+            name = f"{tech} q{p.get('quality')}" if p.get("quality") is not None else str(tech)
+            same = next((m for m in markers if abs(m[0] - x) < 1 and abs(m[1] - y) < 1), None)
+            if same is None:
+                markers.append([x, y, col, name, [(tech, p.get("quality"))]])
+            else:  # the same point (identical results): one label naming both
+                same[2], same[3] = "#333333", same[3] + " = " + name
+                same[4].append((tech, p.get("quality")))
+    plot = (ml, mt, ml + pw, mt + ph)
+
+    def fits(bx):
+        return (plot[0] <= bx[0] and bx[2] <= plot[2] and plot[1] <= bx[1] and bx[3] <= plot[3]
+                and all(bx[0] >= o[2] or bx[2] <= o[0] or bx[1] >= o[3] or bx[3] <= o[1] for o in boxes)
+                and not any(_segment_hits_box(sg, bx) for sg in segments))
+
+    for x, y, col, text in curve_labels:
+        lw = 5.5 * len(text)
+        for dx, dy in ((5, -5), (5, 11), (-5 - lw, -5), (-5 - lw, 11), (6, 3), (-6 - lw, 3)):
+            bx = (x + dx, y + dy - 8, x + dx + lw, y + dy + 1)
+            if fits(bx):
+                boxes.append(bx)
+                parts.append(f'<text x="{bx[0]:.1f}" y="{bx[3] - 1:.1f}" fill="{col}" font-size="9">'
+                             f'{html.escape(text)}</text>')
                 break
-        placed.append(bx)
-        parts.append(f'<text x="{bx[0]:.1f}" y="{bx[3] - 2:.1f}" fill="{col}">{html.escape(label)}</text>')
+    unlabelled: dict = {}
+    for x, y, col, label, members in markers:
+        lw = _CHAR_W * len(label)
+        for dx, dy in ((7, 4), (7, 16), (7, -8), (-7 - lw, 4), (7, 28), (-7 - lw, 16), (-7 - lw, -8),
+                       (7, -20), (-7 - lw, 28), (-7 - lw, -20), (-lw / 2, -10), (-lw / 2, 22)):
+            bx = (x + dx, y + dy - 10, x + dx + lw, y + dy + 2)
+            if fits(bx):
+                boxes.append(bx)
+                parts.append(f'<text x="{bx[0]:.1f}" y="{bx[3] - 2:.1f}" fill="{col}">{html.escape(label)}</text>')
+                break
+        else:
+            for tech, q in members:
+                unlabelled.setdefault(tech, []).append(q)
     # legend
     lx, ly = ml + pw + 14, mt + 10
     for k, (label, _) in enumerate(sets):
@@ -332,8 +380,10 @@ def chart_svg(points, curve, *, metric: str = "relMSE", title: str = "",
     for i, tech in enumerate(techs):
         y = ly + 18 * (i + 1)
         col = _PALETTE[i % len(_PALETTE)]
+        qs = [q for q in unlabelled.get(tech, []) if q is not None]
+        text = str(tech) + (" (" + ", ".join(f"q{q}" for q in qs) + ")" if qs else "")
         parts.append(f'<rect x="{lx + 7}" y="{y - 4}" width="8" height="8" fill="{col}"/>')
-        parts.append(f'<text x="{lx + 28}" y="{y + 4}">{html.escape(str(tech))}</text>')
+        parts.append(f'<text x="{lx + 28}" y="{y + 4}">{html.escape(text)}</text>')
     parts.append("</svg>")
     return "\n".join(parts)
 
