@@ -350,3 +350,25 @@ def _lattice_inside(pr, lo, hi):
     """Probes whose lattice point (before relocation) lies inside the box."""
     lat = pr["positions"] - pr["offset"]
     return int(((lat > lo) & (lat < hi)).all(axis=1).sum())
+
+
+def test_warmup_frames_run_only_the_probe_passes():
+    """An F12 render's warm-up frames run only the passes the probes' state depends on (their
+    rays do not read the image); the accumulated frames run the whole graph. A technique whose
+    warm-up needs the image (RESTIR_GI's reservoirs) keeps every pass in its warm-up frames."""
+    sc = demo_scenes.build_demo("cornell", resolution=24)
+    try:
+        sd = _export(sc)
+        names = {}
+        for tech in ("RTXGI", "RESTIR_GI"):
+            res = session.render(sd, tech, 0, 1, session="probe_warm")
+            (graph,) = [g for (t, *_), (_tech, g) in session._sessions["probe_warm"].graphs.items() if t == tech]
+            names[tech] = ([p.name for p in graph.warmup_passes()], res.pass_order)
+        warm, full = names["RTXGI"]
+        assert warm == ["probe_trace", "probe_state", "probe_update"], warm
+        assert {"gbuffer", "shadows", "direct_light", "probe_gather"} <= set(full), full
+        warm, full = names["RESTIR_GI"]
+        assert warm == full, (warm, full)
+    finally:
+        session.release_session("probe_warm")
+        bpy.data.scenes.remove(sc)

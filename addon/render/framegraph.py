@@ -177,6 +177,9 @@ class Pass:
     read_access: dict = {}
     history_resets: frozenset = ALL_EVENTS  # events that invalidate this pass's history
     warmup_frames: int = 0  # frames of state convergence before F12 accumulates
+    # the state that needs warming up depends only on this pass and the producers of what it
+    # reads (probes: their rays, not the image): warm-up frames then run just those passes
+    warmup_alone: bool = False
     params: tuple = ()  # of Param
     quality_ladder: tuple = ()  # of dicts, index = quality level
     always: bool = False  # runs whatever the scene needs (e.g. the G-buffer, the final resolve)
@@ -798,6 +801,32 @@ class FrameGraph:
             return 0
         return max((int(p.warmup_frames) for p in self._plan.active), default=0)
 
+    def warmup_passes(self) -> list:
+        """The passes a warm-up frame runs: all planned ones, or, when every pass that asks
+        for warm-up frames is ``warmup_alone``, only those and (transitively) the producers of
+        what they read, this frame's and last frame's; the image of a warm-up frame is thrown
+        away, so nothing else needs to run."""
+        active = self._plan.active if self._plan else []
+        warm = [p for p in active if int(p.warmup_frames) > 0]
+        if not warm or not all(p.warmup_alone for p in warm):
+            return list(active)
+        keep = set(id(p) for p in warm)
+        changed = True
+        while changed:
+            changed = False
+            for i, p in enumerate(active):
+                if id(p) not in keep:
+                    continue
+                for r in p.reads:
+                    base = _base(r) if r.endswith(PREV) else r
+                    for j, q in enumerate(active):
+                        if id(q) in keep or base not in q.writes:
+                            continue
+                        if r.endswith(PREV) or j < i:
+                            keep.add(id(q))
+                            changed = True
+        return [p for p in active if id(p) in keep]
+
     def converged(self, rc) -> bool | None:
         """True when every active pass that measures convergence says so (None: nobody measures)."""
         votes = [p.converged(rc) for p in self._plan.active] if self._plan else []
@@ -895,7 +924,8 @@ class FrameGraph:
             raise RuntimeError("FrameGraph.execute before plan()")
         self.allocate(rc)
         rc.frame = frame
-        for p in self._plan.active:  # history: last frame's writes become @prev
+        active = self.warmup_passes() if frame.warmup else self._plan.active
+        for p in active:  # history: last frame's writes become @prev
             for h in p.history:
                 rc.swap_history(h)
         self.barrier_log = []
@@ -906,7 +936,7 @@ class FrameGraph:
             check = sync_check.VALIDATOR
         times: dict[str, float] = {}
         try:
-            self._run(rc, frame, timers, validate, check, times)
+            self._run(rc, active, frame, timers, validate, check, times)
         finally:
             if check is not None and check.pass_ is not None:
                 check.end()
@@ -917,8 +947,8 @@ class FrameGraph:
                 raise sync_check.SyncError("\n".join(found))
         return times
 
-    def _run(self, rc, frame, timers, validate, check, times):
-        for p in self._plan.active:
+    def _run(self, rc, active, frame, timers, validate, check, times):
+        for p in active:
             if self.derive_barriers:
                 self._barrier_before(rc, p)
             if check is not None:

@@ -426,6 +426,8 @@ class ProbeUpdatePass(ProbePass):
     def warmup_frames(self):
         return int(self["warmup"])
 
+    warmup_alone = True  # the probes' rays do not read the image: warm-up frames run the probe passes only
+
     def normal_bias(self) -> float:
         return float(self["normal_bias"]) * float(self.volume.spacing.min())
 
