@@ -350,3 +350,15 @@ def test_technique_renders_without_sync_findings(demo_sd, tech, validating):
         if fut is not None:
             fut.result()
     assert get_gl().call(sync_check.VALIDATOR.take) == []
+
+
+def test_validate_level_2_turns_on_both_checks(monkeypatch):
+    """GI_PREVIEW_VALIDATE=2 runs the sync validation and keeps level 1's NaN/Inf checks;
+    level 1 is the value checks alone."""
+    from gi_preview.render import framegraph
+
+    monkeypatch.delenv("GI_PREVIEW_VALIDATE_SYNC", raising=False)
+    monkeypatch.setenv("GI_PREVIEW_VALIDATE", "2")
+    assert sync_check.enabled() and framegraph.validate_enabled()
+    monkeypatch.setenv("GI_PREVIEW_VALIDATE", "1")
+    assert framegraph.validate_enabled() and not sync_check.enabled()

@@ -32,8 +32,9 @@ composite); a read with no producer, or a cycle, is a ``PlanError`` naming the p
 Execution (``FrameGraph.execute``) inserts ``glMemoryBarrier`` between an incoherent writer
 (image or storage stores) and every later access, with the bits the access type needs
 (barriers.required_bits), recorded in ``barrier_log``; clears and uploads through
-``RenderContext`` are ordered and recorded the same way. ``GI_PREVIEW_VALIDATE_SYNC=1``
-checks the declarations and barriers against what the passes do (sync_check).
+``RenderContext`` are ordered and recorded the same way. ``GI_PREVIEW_VALIDATE=2`` (or
+``GI_PREVIEW_VALIDATE_SYNC=1`` alone) checks the declarations and barriers against what the
+passes do (sync_check).
 With ``GI_PREVIEW_VALIDATE=1`` every resource a pass writes is read back and checked for
 NaN, Inf and (for radiance) negative values; the first bad value raises
 ``ValidationError`` naming the pass and the resource.

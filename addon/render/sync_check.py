@@ -1,7 +1,8 @@
 """Synchronisation validation: what the passes actually do to GL objects, checked against
 what they declare and against the barriers actually issued.
 
-Enabled with ``GI_PREVIEW_VALIDATE_SYNC=1`` (or ``enable()``). While enabled, the moderngl
+Enabled with ``GI_PREVIEW_VALIDATE=2`` (which also keeps the NaN/Inf checks of level 1),
+``GI_PREVIEW_VALIDATE_SYNC=1`` (this check alone) or ``enable()``. While enabled, the moderngl
 methods that access textures, buffers and framebuffers are wrapped so that every access is
 seen: ``Texture.use`` (texture fetch), ``bind_to_image`` (image load / store),
 ``bind_to_storage_buffer`` / ``bind_to_uniform_block`` (storage / uniform),
@@ -39,7 +40,8 @@ class SyncError(RuntimeError):
 
 
 def enabled() -> bool:
-    return _forced or os.environ.get("GI_PREVIEW_VALIDATE_SYNC", "") not in ("", "0", "false", "False")
+    return (_forced or os.environ.get("GI_PREVIEW_VALIDATE", "").strip() == "2"
+            or os.environ.get("GI_PREVIEW_VALIDATE_SYNC", "") not in ("", "0", "false", "False"))
 
 
 _forced = False
