@@ -139,7 +139,7 @@ def choose(shares: dict, table: dict | None, width: int, height: int, *, budget_
             continue
         if diff_skip and dmeth is not None:
             continue  # nothing to gather: no diffuse GI member
-        if gloss_skip and gmeth == "SSR":
+        if gloss_skip and gmeth and "SSR" in gmeth:
             continue  # its SSR passes would be skipped: the same graph as the one without SSR
         cands[cid] = (float(rows[cid]["relmse"]), float(rows[cid]["ms"]) * scale)
     if not cands:
