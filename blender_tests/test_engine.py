@@ -556,15 +556,15 @@ def test_viewport_progressive_with_fake_gpu(monkeypatch):
 
 @pytest.mark.parametrize("demo,ssr_runs", [("cornell", False), ("glossy_spheres", True)])
 def test_auto_runs_only_the_passes_the_scene_needs(demo, ssr_runs):
-    """AUTO = DIRECT + SSDO + SSR passes in one graph; the planner skips SSR where no glossy
-    surface is in view, and says why."""
+    """AUTO's DIRECT + SSDO + SSR candidate: passes in one graph; the planner skips SSR where
+    the measured indirect glossy share is below the threshold, and says why with the number."""
     sc = build_demo(demo, resolution=32)
     try:
         from gi_preview.blender.export import export_scene
 
         with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
             dg = bpy.context.evaluated_depsgraph_get()
-        res = session.render(export_scene(dg), "AUTO", 0, 2)
+        res = session.render(export_scene(dg), "AUTO", 0, 2, auto={"candidate": "DIRECT+SSDO+SSR"})
         assert np.isfinite(res.image).all()
         skipped = {s.name: s.reason for s in res.skipped_passes}
         ssr = {n for n in res.pass_ms if n.startswith("ssr")}
@@ -574,7 +574,8 @@ def test_auto_runs_only_the_passes_the_scene_needs(demo, ssr_runs):
         else:
             assert not ssr
             assert {n for n in skipped if n.startswith("ssr")} and all(
-                r == "no glossy surface in view" for n, r in skipped.items() if n.startswith("ssr"))
+                r.startswith("indirect glossy: ") and r.endswith(" % of the image -> skipped")
+                for n, r in skipped.items() if n.startswith("ssr"))
         assert "ssdo" in res.pass_ms and "indirect_diffuse" in res.effects
     finally:
         bpy.data.scenes.remove(sc)

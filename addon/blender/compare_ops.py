@@ -230,10 +230,11 @@ class GIPREVIEW_OT_compare(bpy.types.Operator):
             st["export_ms"] = (time.perf_counter() - t0) * 1e3
             st["fingerprint"] = sd.fingerprint()
             st["size"] = (sd.width, sd.height)
-            from .engine import _filter_options, _pass_params
+            from .engine import _auto_options, _filter_options, _pass_params
             # as F12 renders it: the technique settings and the filters of the render panel
             res = session.render(sd, technique=tech, quality=quality, samples=samples,
-                                 params=_pass_params(scene, tech), **_filter_options(scene))
+                                 params=_pass_params(scene, tech), **_filter_options(scene),
+                                 **_auto_options(scene, tech))
             st["ours"] = res
 
         def render_ref():

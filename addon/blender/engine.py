@@ -97,6 +97,13 @@ def _filter_options(scene) -> dict:
     return {"denoiser": str(getattr(s, "denoiser", "NONE")), "use_taa": bool(getattr(s, "use_taa", False))}
 
 
+def _auto_options(scene, technique: str) -> dict:
+    """AUTO's Frame Budget / Target Error / Skip Below, as ``session.render(auto=...)``."""
+    from .properties import auto_options
+
+    return auto_options(scene.gi_preview, technique)
+
+
 def _pass_params(scene, technique: str) -> dict:
     """The technique settings of the Render Properties (those not left at 0, "the Quality
     level's value"), as pass parameters for ``session.render(params=...)``."""
@@ -155,7 +162,8 @@ def final_render(engine, depsgraph):
         res = session.render(data, technique, quality, samples, progress=engine.update_progress,
                              cancel=engine.test_break, keep_history=bool(engine.is_animation),
                              session="final", camera_cut=True if first else None, warmup=first,
-                             params=_pass_params(scene, technique), **_filter_options(scene))
+                             params=_pass_params(scene, technique), **_filter_options(scene),
+                             **_auto_options(scene, technique))
     except session.Cancelled:
         return
     except (GLUnavailableError, SceneError, ShaderError, ValueError) as exc:
@@ -189,6 +197,7 @@ def final_render(engine, depsgraph):
         "history_resets": list(res.history_resets),
         "passes": written, "available_passes": [p.name for p in layer.passes],
         "scene_support": scene_support(data),
+        "auto": res.auto,
     }
     try:
         result.stamp_data_add_field("GI Preview", json.dumps(info))
@@ -373,7 +382,7 @@ def view_draw(engine, context, depsgraph):
             st.future = submit(
                 data, technique, quality, 1, continue_accumulation=True, keep_history=True,
                 session=st.session_for(context.region_data), on_done=_redraw_callback(engine, st),
-                params=params, **_filter_options(scene))
+                params=params, **_filter_options(scene), **_auto_options(scene, technique))
             st.future_key = st.key
             st.error = None
         except (GLUnavailableError, ValueError) as exc:

@@ -228,6 +228,15 @@ def filter_settings(s, technique_id: str) -> list:
     return [st for st in SETTINGS if st.filter in f]
 
 
+def auto_options(s, technique_id: str) -> dict:
+    """AUTO's settings as ``session.render(auto=...)`` (empty for other techniques)."""
+    if technique_id != "AUTO":
+        return {}
+    return {"auto": {"budget_ms": float(getattr(s, "auto_frame_budget", 0.0)),
+                     "target_error": float(getattr(s, "auto_target_error", 0.0)),
+                     "threshold": float(getattr(s, "auto_threshold", 1.0)) / 100.0}}
+
+
 def pass_overrides(s, technique_id: str) -> dict:
     """``{pass name: {parameter: value}}`` from the settings of ``technique_id`` and of the
     filters ending its graph that are not 0 (0 keeps the Quality level's value): what the
@@ -290,6 +299,17 @@ class GIPreviewSceneSettings(bpy.types.PropertyGroup):
     viewport_scale: bpy.props.FloatProperty(
         name="Viewport Resolution", default=0.5, min=0.1, max=1.0, subtype="FACTOR",
         description="Viewport render resolution relative to the view (lower is faster)")
+    auto_frame_budget: bpy.props.FloatProperty(
+        name="Frame Budget", default=0.0, min=0.0, soft_max=1000.0, unit="NONE", update=_update,
+        description="AUTO: milliseconds one frame may take (0 = unlimited); AUTO picks the most accurate "
+                    "combination whose measured cost fits")
+    auto_target_error: bpy.props.FloatProperty(
+        name="Target Error", default=0.0, min=0.0, soft_max=1.0, precision=4, update=_update,
+        description="AUTO: relMSE against Cycles to aim for (0 = as accurate as the budget allows); AUTO picks "
+                    "the cheapest combination predicted to reach it")
+    auto_threshold: bpy.props.FloatProperty(
+        name="Skip Below", default=1.0, min=0.0, max=100.0, subtype="PERCENTAGE", update=_update,
+        description="AUTO: an indirect effect whose measured share of the image is below this is skipped")
     compare_reference: bpy.props.EnumProperty(
         name="Reference", items=COMPARE_REFERENCE_ITEMS, default="AUTO",
         description="What Cycles renders for the comparison")

@@ -477,6 +477,133 @@ def _render_with(scene, settings, engine_label: str, *, ao_distance=None, cancel
     return image, time_ms
 
 
+# ---------------------------------------------------------------- light-path passes
+# Cycles' light-path passes by effect (render/effect_shares.py's names): the direct and
+# indirect light passes are multiplied by their colour pass, as Cycles composes Combined
+LIGHT_PASSES = ("Diffuse Direct", "Diffuse Indirect", "Diffuse Color", "Glossy Direct", "Glossy Indirect",
+                "Glossy Color", "Transmission Direct", "Transmission Indirect", "Transmission Color",
+                "Emission", "Environment")
+_PASS_PROPS = {"Diffuse Direct": "use_pass_diffuse_direct", "Diffuse Indirect": "use_pass_diffuse_indirect",
+               "Diffuse Color": "use_pass_diffuse_color", "Glossy Direct": "use_pass_glossy_direct",
+               "Glossy Indirect": "use_pass_glossy_indirect", "Glossy Color": "use_pass_glossy_color",
+               "Transmission Direct": "use_pass_transmission_direct",
+               "Transmission Indirect": "use_pass_transmission_indirect",
+               "Transmission Color": "use_pass_transmission_color", "Emission": "use_pass_emit",
+               "Environment": "use_pass_environment"}
+
+
+def _read_parts(path: str) -> dict:
+    """Every part (subimage) of a multi-part EXR, as {layer name: (H, W, C)} row 0 = bottom
+    (the compositor writes one part per pass)."""
+    m = imageio.oiio()
+    inp = m.ImageInput.open(path)
+    if inp is None:
+        raise RuntimeError(f"cannot read {path}: {m.geterror()}")
+    out = {}
+    try:
+        i = 0
+        while inp.seek_subimage(i, 0):
+            spec = inp.spec()
+            a = np.asarray(inp.read_image(i, 0, 0, spec.nchannels, "float"), np.float32)
+            a = a.reshape(spec.height, spec.width, spec.nchannels)[::-1]
+            name = str(spec.channelnames[0]).rsplit(".", 1)[0]
+            out[name] = np.ascontiguousarray(a)
+            i += 1
+    finally:
+        inp.close()
+    return out
+
+
+def render_cycles_light_passes(scene, spp: int, *, width: int | None = None, height: int | None = None,
+                               seed: int = DEFAULT_SEED, guard_log: list | None = None) -> dict:
+    """Cycles' light-path passes of ``scene`` (the full reference's settings) by effect:
+    ``{"direct", "indirect_diffuse", "indirect_glossy", "transmission", "emission",
+    "environment", "combined"}`` -> (H, W, 3) float32, row 0 = bottom.
+
+    The passes reach a file only through the compositor (see the module notes on
+    ``save_render``): a temporary compositor node group (Render Layers -> File Output,
+    multilayer EXR) is set as the scene's ``compositing_node_group`` for the render; the
+    view layer's pass switches, the node group and every render setting are restored or
+    removed afterwards, so the user's scene is left as it was."""
+    ensure_oiio()
+    if scene.camera is None:
+        raise RuntimeError(f"Scene '{scene.name}' has no camera: a Cycles render needs one")
+    vl = scene.view_layers[0]
+    settings = fair_settings(scene, "full", spp, seed, width, height)
+    settings = [(p, v) for p, v in settings if p != "render.use_compositing"] + [("render.use_compositing", True)]
+    settings += [(f"{_vl_path(vl)}.{prop}", True) for prop in _PASS_PROPS.values()]
+    folder = tempfile.mkdtemp(prefix="gi_preview_passes_")
+    guard = SettingsGuard(scene)
+    out = {}
+    try:
+        with guard:
+            for path, _ in settings:
+                guard.record(path)
+            guard.record("compositing_node_group")
+            for path, value in settings:
+                guard.set(path, value)
+            ng = bpy.data.node_groups.new("gi_preview_light_passes", "CompositorNodeTree")
+            guard.on_exit(lambda g=ng: bpy.data.node_groups.remove(g))
+            rl = ng.nodes.new("CompositorNodeRLayers")
+            rl.scene = scene
+            rl.layer = vl.name
+            fo = ng.nodes.new("CompositorNodeOutputFile")
+            fo.directory = folder
+            fo.file_name = "passes"
+            fo.format.file_format = "OPEN_EXR_MULTILAYER"
+            fo.format.color_depth = "32"
+            for name in ("Image",) + LIGHT_PASSES:
+                fo.file_output_items.new("RGBA", name)
+                ng.links.new(rl.outputs[name], fo.inputs[name])
+            guard.set("compositing_node_group", ng)
+            if guard_log is not None:
+                guard_log.extend(guard.touched)
+            _run_render(scene)
+        files = [f for f in os.listdir(folder) if f.endswith(".exr")]
+        if not files:
+            raise RuntimeError("Cycles wrote no light-pass file")
+        layers = _read_parts(os.path.join(folder, files[0]))
+    finally:
+        for f in os.listdir(folder):
+            try:
+                os.unlink(os.path.join(folder, f))
+            except OSError:
+                pass
+        try:
+            os.rmdir(folder)
+        except OSError:
+            pass
+    if guard.errors:
+        raise RuntimeError("settings not fully restored: " + "; ".join(guard.errors))
+
+    def layer(name):
+        for k, v in layers.items():
+            if k == name or k.endswith("." + name):
+                return np.asarray(v[..., :3], np.float32)
+        raise KeyError(f"pass {name!r} not in the file (layers: {sorted(layers)})")
+
+    col = {k: layer(f"{k} Color") for k in ("Diffuse", "Glossy", "Transmission")}
+    out["direct"] = sum(layer(f"{k} Direct") * col[k] for k in col)
+    out["indirect_diffuse"] = layer("Diffuse Indirect") * col["Diffuse"]
+    out["indirect_glossy"] = layer("Glossy Indirect") * col["Glossy"]
+    out["transmission"] = layer("Transmission Indirect") * col["Transmission"]
+    out["emission"] = layer("Emission")
+    out["environment"] = layer("Environment")
+    out["combined"] = layer("Image")
+    return out
+
+
+def cycles_effect_shares(scene, spp: int = 64, *, width: int | None = None, height: int | None = None) -> dict:
+    """Each effect's share of the image's luminance from Cycles' light-path passes
+    (:func:`render_cycles_light_passes`); the same definition as render/effect_shares.py."""
+    from ..render.effect_shares import EFFECTS, LUMA
+
+    p = render_cycles_light_passes(scene, spp, width=width, height=height)
+    lum = {e: max(0.0, float(np.sum(np.asarray(p[e], np.float64) @ LUMA))) for e in EFFECTS}
+    tot = sum(lum.values())
+    return {e: (lum[e] / tot if tot > 0 else 0.0) for e in EFFECTS}
+
+
 # ---------------------------------------------------------------- cached references
 @dataclass
 class Reference:

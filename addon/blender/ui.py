@@ -54,6 +54,10 @@ class GIPREVIEW_RENDER_PT_technique(GIPreviewPanel, bpy.types.Panel):
         s = context.scene.gi_preview
         layout.prop(s, "technique")
         layout.prop(s, "quality_preset")
+        if s.technique == "AUTO":
+            layout.prop(s, "auto_frame_budget")
+            layout.prop(s, "auto_target_error")
+            layout.prop(s, "auto_threshold")
         info = _info(s.technique) if s.technique != "AUTO" else None
         if info is not None:
             layout.label(text=f"Compared with Cycles: {info.reference.replace('_', ' ')} reference", icon="INFO")

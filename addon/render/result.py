@@ -46,6 +46,7 @@ class RenderResult:
     warmup_frames: int = 0  # frames run (not accumulated) for the technique's state to converge
     history_resets: list[str] = field(default_factory=list)  # passes whose history this call reset
     pass_order: list[str] = field(default_factory=list)  # the planned passes in execution order
+    auto: dict = field(default_factory=dict)  # AUTO's plan: shares, chosen members, predictions (else empty)
 
     @property
     def width(self) -> int:

@@ -71,12 +71,34 @@ class Session:
         self.prev_view_proj = None
         self.sample_counter = 0
         self._last_graph = None
+        self._shares = None  # effect_shares.SharesCache (AUTO), made on first use
+
+    def effect_shares(self, scene: SceneData):
+        """The measured effect shares of ``scene`` (cached per scene version and camera)."""
+        if self._shares is None:
+            from .effect_shares import SharesCache
+            self._shares = SharesCache(self.ctx, self.programs, self.gpu_scene)
+        return self._shares.get(scene)
+
+    def auto_plan(self, scene: SceneData, auto: dict | None = None):
+        """AUTO's plan for ``scene``: shares measured, members chosen (techniques/auto.py)."""
+        from .techniques import auto as auto_mod
+        o = auto or {}
+        shares = self.effect_shares(scene)
+        plan = auto_mod.choose(shares.shares, auto_mod.load_table(), scene.width, scene.height,
+                               budget_ms=float(o.get("budget_ms", 0.0) or 0.0),
+                               target_error=float(o.get("target_error", 0.0) or 0.0),
+                               threshold=float(o.get("threshold", 0.01)), force=o.get("candidate"))
+        plan.notes.append(f"shares measured at {shares.size[0]}x{shares.size[1]}, {shares.samples} spp, "
+                          f"{shares.time_ms:.0f} ms")
+        return plan
 
     # -------------------------------------------------------------- helpers
-    def _graph(self, technique_id: str, quality: int, denoiser: str = "NONE", use_taa: bool = False):
-        key = (technique_id, quality, (denoiser or "NONE").upper(), bool(use_taa))
+    def _graph(self, technique_id: str, quality: int, denoiser: str = "NONE", use_taa: bool = False,
+               members: tuple | None = None):
+        key = (technique_id, quality, (denoiser or "NONE").upper(), bool(use_taa)) + ((members,) if members else ())
         if key not in self.graphs:
-            tech = techniques.get(technique_id)()
+            tech = techniques.get(technique_id)(members) if members else techniques.get(technique_id)()
             # scene.gi_preview.denoiser / use_taa end the graph; the technique's own graph type
             # plans it either way (a filtered RSM still skips its passes without shadow lights)
             graph = tech.build(quality, key[2], key[3])
@@ -129,7 +151,8 @@ class Session:
                      cancel: threading.Event | None = None, progress=None,
                      continue_accumulation: bool = False, keep_history: bool = False,
                      camera_cut: bool | None = None, warmup: bool | None = None,
-                     denoiser: str = "NONE", use_taa: bool = False, params: dict | None = None):
+                     denoiser: str = "NONE", use_taa: bool = False, params: dict | None = None,
+                     auto: dict | None = None):
         """Render ``samples`` accumulated frames as a generator: it yields after every frame
         (warm-up frames included) so the GL thread can serve other sessions in between, and
         returns the RenderResult (``StopIteration.value``).
@@ -143,16 +166,24 @@ class Session:
         parameters (``{pass name: {param: value}}``) over the quality level's values (the
         scene's technique settings); given, the graph holds exactly these on top of its
         quality ladder (a parameter no longer given returns to the ladder's value); None
-        leaves the graph's parameters as they are (:func:`set_pass_properties`)."""
+        leaves the graph's parameters as they are (:func:`set_pass_properties`). auto: AUTO's
+        settings (``budget_ms``, ``target_error``, ``threshold``, ``candidate``: techniques/auto.py)."""
         validate_scene(scene)
         t_start = time.perf_counter()
         setup0 = self._setup_clock()
         analysis = analyse(scene)
         denoiser = techniques.resolve_denoiser(technique, denoiser)  # "AUTO": the technique's default
-        tech, graph = self._graph(technique, quality, denoiser, use_taa)
+        changes = self.gpu_scene.update(scene)
+        plan_auto = None
+        if technique == "AUTO":
+            plan_auto = self.auto_plan(scene, auto)
+            for eff, why in plan_auto.skipped.items():
+                analysis.needed.discard(eff)
+                analysis.reasons[eff] = why
+        tech, graph = self._graph(technique, quality, denoiser, use_taa,
+                                  plan_auto.members if plan_auto is not None else None)
         if params is not None:
             apply_overrides(graph, params)
-        changes = self.gpu_scene.update(scene)
         size = (scene.width, scene.height)
         if self.rc is None:
             self.rc = RenderContext(self.ctx, self.programs, self.gpu_scene, size)
@@ -168,7 +199,8 @@ class Session:
         view = cam.view.astype(np.float64)
         proj = cam.projection.astype(np.float64)
         vp = proj @ view
-        acc_key = (technique, quality, denoiser, use_taa, size, self.gpu_scene.version, vp.astype(np.float32).tobytes(),
+        acc_key = (technique, plan_auto.members if plan_auto is not None else None, quality, denoiser, use_taa,
+                   size, self.gpu_scene.version, vp.astype(np.float32).tobytes(),
                    params_key(params))
         fresh = not (continue_accumulation and acc_key == self.acc_key)
         if fresh:
@@ -278,7 +310,7 @@ class Session:
             skipped_passes=list(plan.skipped), warnings=warnings,
             cancelled=bool(cancel is not None and cancel.is_set()),
             setup_ms=float(setup_ms), warmup_frames=int(warm_done), history_resets=list(reset),
-            pass_order=graph.order)
+            pass_order=graph.order, auto=plan_auto.as_dict() if plan_auto is not None else {})
 
     def _setup_clock(self) -> float:
         """Milliseconds of one-time work done so far: shader compiles and scene setup
@@ -317,6 +349,9 @@ class Session:
         self.acc.clear()
         if self.rc is not None:
             self.rc.resources.release()
+        if self._shares is not None:
+            self._shares.release()
+            self._shares = None
         self.gpu_scene.release()
         self.programs.release()
 

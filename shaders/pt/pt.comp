@@ -13,6 +13,9 @@
 // counted against u_max_transmission as Cycles counts them.
 // Writes the per-frame mean of its samples: colour and three effect AOVs
 // (direct = paths with one scattering, indirect diffuse / glossy by the first lobe).
+// With PT_SHARES (render/effect_shares.py) three more: what camera rays see directly on a
+// surface (emission) and on a miss (environment), and the indirect paths whose first lobe is
+// transmission (a part of the glossy AOV).
 // Ray tracing, materials, light selection, NEE and the MIS of BSDF rays hitting lights are
 // the shared component lib/scene_rt.glsl (host side: render/rt_scene.py SceneRT).
 #define USE_SCENE_BUFFERS
@@ -30,6 +33,11 @@ layout(binding = 0, rgba32f) uniform writeonly image2D o_color;
 layout(binding = 1, rgba32f) uniform writeonly image2D o_direct;
 layout(binding = 2, rgba32f) uniform writeonly image2D o_ind_diffuse;
 layout(binding = 3, rgba32f) uniform writeonly image2D o_ind_glossy;
+#ifdef PT_SHARES
+layout(binding = 4, rgba32f) uniform writeonly image2D o_emission;
+layout(binding = 5, rgba32f) uniform writeonly image2D o_environment;
+layout(binding = 6, rgba32f) uniform writeonly image2D o_ind_transmission;
+#endif
 
 uniform mat4 u_cam_to_world;
 uniform mat4 u_inv_proj;
@@ -48,13 +56,24 @@ uniform int u_pixel_sequence;  // in-pixel position: 0 white noise, 1 Halton(2,3
 uniform int u_lights_visible_camera;  // Blender's default for light objects: 0
 
 // ---------------------------------------------------------------- path tracing
-struct PathOut { vec3 color; vec3 direct; vec3 ind_diffuse; vec3 ind_glossy; float coverage; };
+struct PathOut {
+    vec3 color; vec3 direct; vec3 ind_diffuse; vec3 ind_glossy; float coverage;
+#ifdef PT_SHARES
+    vec3 emission; vec3 environment; vec3 ind_transmission;
+#endif
+};
 
+// first_lobe: 0 diffuse, 1 glossy, 2 transmission (counted as glossy)
 void add(inout PathOut o, vec3 c, int depth, int first_lobe) {
     o.color += c;
     if (depth <= 1) o.direct += c;
     else if (first_lobe == 0) o.ind_diffuse += c;
-    else o.ind_glossy += c;
+    else {
+        o.ind_glossy += c;
+#ifdef PT_SHARES
+        if (first_lobe == 2) o.ind_transmission += c;
+#endif
+    }
 }
 
 void camera_ray(vec2 pix, out vec3 o, out vec3 d, out float tmin) {
@@ -78,6 +97,9 @@ PathOut trace_path(vec2 pix, inout Rng rng) {
     PathOut out_;
     out_.color = vec3(0.0); out_.direct = vec3(0.0); out_.ind_diffuse = vec3(0.0); out_.ind_glossy = vec3(0.0);
     out_.coverage = 0.0;
+#ifdef PT_SHARES
+    out_.emission = vec3(0.0); out_.environment = vec3(0.0); out_.ind_transmission = vec3(0.0);
+#endif
     vec3 o, d;
     float tmin;
     camera_ray(pix, o, d, tmin);
@@ -94,6 +116,12 @@ PathOut trace_path(vec2 pix, inout Rng rng) {
         // miss, the surface's emission on a hit; MIS-weighted against NEE (the shared block)
         vec3 Le = bsdf_hit_light_mis(o, d, tmin, hit, sh, last_pdf, depth > 0 || u_lights_visible_camera != 0);
         if (max3(Le) > 0.0) add(out_, beta * Le, depth, first_lobe);
+#ifdef PT_SHARES
+        if (depth == 0) {
+            if (hit) out_.emission += Le;
+            else out_.environment += Le;
+        }
+#endif
         if (depth == 0 && hit) out_.coverage = 1.0;
         if (!hit || last) break;
         Surface s = sh.bsdf;
@@ -126,7 +154,7 @@ PathOut trace_path(vec2 pix, inout Rng rng) {
         if (lobe == LOBE_DIFFUSE) ++n_diffuse;
         else if (lobe == LOBE_GLOSSY) ++n_glossy;
         else ++n_transmission;
-        if (depth == 0) first_lobe = lobe == LOBE_DIFFUSE ? 0 : 1;
+        if (depth == 0) first_lobe = lobe == LOBE_DIFFUSE ? 0 : (lobe == LOBE_TRANSMISSION ? 2 : 1);
         beta *= f / pdf;
         last_pdf = pdf;
         depth += 1;
@@ -160,6 +188,9 @@ void main() {
     PathOut acc;
     acc.color = vec3(0.0); acc.direct = vec3(0.0); acc.ind_diffuse = vec3(0.0); acc.ind_glossy = vec3(0.0);
     acc.coverage = 0.0;
+#ifdef PT_SHARES
+    vec3 a_emission = vec3(0.0), a_environment = vec3(0.0), a_transmission = vec3(0.0);
+#endif
     for (int k = 0; k < u_spp; ++k) {
         Rng rng = rng_init(uvec2(px), u_sample * uint(u_spp) + uint(k), u_seed);
         vec2 j = rng_next2(rng);  // drawn in both modes: the path's random numbers stay the same
@@ -170,6 +201,11 @@ void main() {
         acc.ind_diffuse += sanitize(r.ind_diffuse);
         acc.ind_glossy += sanitize(r.ind_glossy);
         acc.coverage += r.coverage;
+#ifdef PT_SHARES
+        a_emission += sanitize(r.emission);
+        a_environment += sanitize(r.environment);
+        a_transmission += sanitize(r.ind_transmission);
+#endif
     }
     float inv = 1.0 / float(max(u_spp, 1));
     // alpha: with a transparent film, the camera rays' coverage (the session's alpha)
@@ -177,4 +213,9 @@ void main() {
     imageStore(o_direct, px, vec4(acc.direct * inv, 1.0));
     imageStore(o_ind_diffuse, px, vec4(acc.ind_diffuse * inv, 1.0));
     imageStore(o_ind_glossy, px, vec4(acc.ind_glossy * inv, 1.0));
+#ifdef PT_SHARES
+    imageStore(o_emission, px, vec4(a_emission * inv, 1.0));
+    imageStore(o_environment, px, vec4(a_environment * inv, 1.0));
+    imageStore(o_ind_transmission, px, vec4(a_transmission * inv, 1.0));
+#endif
 }

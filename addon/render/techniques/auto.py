@@ -1,22 +1,48 @@
-"""AUTO: one graph holding the cheapest passes that can cover every effect, planned per scene.
+"""AUTO: one graph per scene, composed per effect from measured effect shares and a table of
+measured cost and error.
 
-The graph is DIRECT's passes, then SSDO's (ambient occlusion, one diffuse bounce from
-on-screen senders), then SSR's (glossy reflections), merged by pass name (the
-G-buffer, shadow and direct-light passes are shared). The planner runs only the passes
-whose effects the scene calls for: a scene with no glossy surface in view skips the SSR
-passes ("no glossy surface in view"), an unlit scene skips the SSDO passes, a scene whose
-lights cast no shadow skips the shadow pass — each reported with its reason. DIRECT lights
-with the world (shadowed); SSDO adds one diffuse bounce; SSR replaces DIRECT's world
-reflection by what the reflected rays find on screen.
-
-Quality: the same level for every member technique. Compared with: Cycles "one_bounce"
-(and "full"). Screen-space limits apply (see SSDO.md, SSR.md).
+For each render (cached per scene version and camera, ``render/effect_shares.py``) AUTO
+measures every effect's share of what the camera sees with a small path-traced image. An
+indirect effect below ``threshold`` (default 1 %) is skipped, with the number in the
+planner's reason ("indirect glossy: 0.3 % of the image -> skipped"). The remaining effects
+choose among the candidates of ``CANDIDATES``: each is a list of member techniques merged
+by pass name (``merge_passes``: the G-buffer, shadows and direct light run once; RTXGI_SSR
+is RTXGI with SSR's passes using the probes as miss fallback). ``auto_table.json``
+(written by ``scripts/sweep_auto.py``) holds, per demo scene, its measured shares and each
+candidate's relMSE against Cycles full and ms/frame on llvmpipe. The scene's class is the
+demo scene nearest in shares (L1); the candidate's predicted error is the table's relMSE
+on that class, its predicted cost the table's ms scaled by pixel count. AUTO takes the most
+accurate candidate whose predicted cost fits the frame budget (0 = unlimited); with a target
+error, the cheapest one predicted to reach it. Without a table AUTO runs the bundle
+DIRECT + SSDO + SSR (``DEFAULT_MEMBERS``).
 """
 from __future__ import annotations
 
+import json
+import os
+from dataclasses import dataclass, field
+
+from ..framegraph import Effect
 from . import Technique, get, register
 
-MEMBERS = ("DIRECT", "SSDO", "SSR")
+DEFAULT_MEMBERS = ("DIRECT", "SSDO", "SSR")
+# candidate id -> (members, diffuse method, glossy method)
+CANDIDATES = {
+    "DIRECT": (("DIRECT",), None, None),
+    "DIRECT+SSR": (("DIRECT", "SSR"), None, "SSR"),
+    "DIRECT+SSDO": (("DIRECT", "SSDO"), "SSDO", None),
+    "DIRECT+SSDO+SSR": (("DIRECT", "SSDO", "SSR"), "SSDO", "SSR"),
+    "DDGI": (("DDGI",), "DDGI", None),
+    "DDGI+SSR": (("DDGI", "SSR"), "DDGI", "SSR"),
+    "RTXGI": (("RTXGI",), "RTXGI", "probes"),
+    "RTXGI_SSR": (("RTXGI_SSR",), "RTXGI", "probes+SSR"),
+    "SVGF": (("SVGF",), "PT", "PT"),
+}
+BUNDLE = "DIRECT+SSDO+SSR"
+TABLE_PATH = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "auto_table.json")
+# effects with passes of their own that the threshold can skip, and the share that measures them
+SKIPPABLE = {Effect.INDIRECT_DIFFUSE: "indirect_diffuse", Effect.INDIRECT_SPECULAR: "indirect_glossy"}
+LABEL = {"indirect_diffuse": "indirect diffuse", "indirect_glossy": "indirect glossy"}
 
 
 def merge_passes(groups: list[list]) -> list:
@@ -30,27 +56,148 @@ def merge_passes(groups: list[list]) -> list:
     return out
 
 
+_TABLE_CACHE: dict = {}
+
+
+def load_table(path: str = TABLE_PATH) -> dict | None:
+    """The measured table (``auto_table.json``), or None when there is none."""
+    try:
+        mtime = os.path.getmtime(path)
+    except OSError:
+        return None
+    hit = _TABLE_CACHE.get(path)
+    if hit is None or hit[0] != mtime:
+        with open(path, encoding="utf-8") as f:
+            _TABLE_CACHE[path] = (mtime, json.load(f))
+    return _TABLE_CACHE[path][1]
+
+
+@dataclass
+class AutoPlan:
+    candidate: str
+    members: tuple
+    shares: dict = field(default_factory=dict)
+    skipped: dict = field(default_factory=dict)  # Effect -> reason
+    scene_class: str | None = None
+    predicted_relmse: float | None = None
+    predicted_ms: float | None = None
+    budget_ms: float = 0.0
+    target_error: float = 0.0
+    notes: list = field(default_factory=list)
+    considered: dict = field(default_factory=dict)  # candidate -> (relMSE, ms) predicted
+
+    def as_dict(self) -> dict:
+        return {"candidate": self.candidate, "members": list(self.members),
+                "shares": {k: round(float(v), 5) for k, v in self.shares.items()},
+                "skipped": {e.value: r for e, r in self.skipped.items()}, "scene_class": self.scene_class,
+                "predicted_relmse": self.predicted_relmse, "predicted_ms": self.predicted_ms,
+                "budget_ms": self.budget_ms, "target_error": self.target_error, "notes": list(self.notes),
+                "considered": {k: [round(v[0], 5), round(v[1], 2)] for k, v in self.considered.items()}}
+
+
+def scene_class(shares: dict, table: dict) -> str:
+    """The demo scene of the table whose measured shares are nearest (L1) to ``shares``."""
+    best, dist = None, None
+    for name, row in table["scenes"].items():
+        d = sum(abs(float(shares.get(e, 0.0)) - float(row["shares"].get(e, 0.0))) for e in row["shares"])
+        if dist is None or d < dist:
+            best, dist = name, d
+    return best
+
+
+def choose(shares: dict, table: dict | None, width: int, height: int, *, budget_ms: float = 0.0,
+           target_error: float = 0.0, threshold: float = 0.01, force: str | None = None) -> AutoPlan:
+    """The plan for a scene with measured ``shares`` (effect -> fraction) at ``width`` x ``height``.
+    ``force``: a candidate id to run whatever the table says (the sweep, comparisons)."""
+    skipped = {}
+    for eff, key in SKIPPABLE.items():
+        s = float(shares.get(key, 0.0))
+        if s < threshold:
+            skipped[eff] = f"{LABEL[key]}: {100.0 * s:.1f} % of the image -> skipped"
+    if Effect.INDIRECT_DIFFUSE in skipped:
+        skipped[Effect.AO] = skipped[Effect.INDIRECT_DIFFUSE]
+    plan = AutoPlan(BUNDLE, CANDIDATES[BUNDLE][0], dict(shares), skipped, budget_ms=float(budget_ms or 0.0),
+                    target_error=float(target_error or 0.0))
+    if force:
+        if force not in CANDIDATES:
+            raise ValueError(f"unknown AUTO candidate {force!r} (one of {', '.join(CANDIDATES)})")
+        plan.candidate, plan.members = force, CANDIDATES[force][0]
+        plan.notes.append("candidate forced")
+        return plan
+    if table is None:
+        plan.notes.append("no measured table (auto_table.json): the DIRECT + SSDO + SSR bundle")
+        return plan
+    cls = scene_class(shares, table)
+    plan.scene_class = cls
+    scale = (width * height) / float(table["width"] * table["height"])
+    rows = {r["candidate"]: r for r in table["rows"] if r["scene"] == cls and r["candidate"] in CANDIDATES}
+    diff_skip = Effect.INDIRECT_DIFFUSE in skipped
+    gloss_skip = Effect.INDIRECT_SPECULAR in skipped
+    cands = {}
+    for cid, (members, dmeth, gmeth) in CANDIDATES.items():
+        if cid not in rows:
+            continue
+        if diff_skip and dmeth is not None:
+            continue  # nothing to gather: no diffuse GI member
+        if gloss_skip and gmeth and "SSR" in gmeth:
+            continue  # its SSR passes would be skipped: the same graph as the one without SSR
+        cands[cid] = (float(rows[cid]["relmse"]), float(rows[cid]["ms"]) * scale)
+    if not cands:
+        plan.notes.append(f"the table has no candidate for class {cls}: the bundle")
+        return plan
+    plan.considered = dict(cands)
+    budget = float(budget_ms or 0.0)
+    fits = {c: v for c, v in cands.items() if budget <= 0.0 or v[1] <= budget}
+    if not fits:
+        pick = min(cands, key=lambda c: cands[c][1])
+        plan.notes.append(f"no candidate fits {budget:.0f} ms: the cheapest ({cands[pick][1]:.0f} ms)")
+    elif target_error and target_error > 0.0 and any(v[0] <= target_error for v in fits.values()):
+        pick = min((c for c in fits if fits[c][0] <= target_error), key=lambda c: fits[c][1])
+    else:
+        pick = min(fits, key=lambda c: (fits[c][0], fits[c][1]))
+    plan.candidate = pick
+    plan.members = CANDIDATES[pick][0]
+    plan.predicted_relmse, plan.predicted_ms = cands[pick]
+    return plan
+
+
+def all_members() -> tuple:
+    out = []
+    for members, _d, _g in CANDIDATES.values():
+        for m in members:
+            if m not in out:
+                out.append(m)
+    return tuple(out)
+
+
 @register
 class Auto(Technique):
     id = "AUTO"
     label = "Auto"
-    description = ("The planner runs the cheapest passes that cover what the scene needs: direct light, "
-                   "SSDO for ambient light and one diffuse bounce, SSR for glossy reflections")
+    description = ("Measures each effect's share of the image and runs, per effect, the most accurate "
+                   "technique that fits the frame budget (measured table: SSDO, DDGI, RTXGI, SSR, SVGF)")
     family = "auto"
-    reference = "one_bounce"
+    reference = "full"
     cost_rank = 50
 
-    @classmethod
-    def _members(cls):
-        return [get(t) for t in MEMBERS if t != cls.id]
+    def __init__(self, members: tuple | None = None):
+        self.chosen = tuple(members) if members else None
+        self.members = self.chosen or DEFAULT_MEMBERS
+
+    def _members(self):
+        return [get(t) for t in self.members if t != self.id]
 
     @property
-    def outputs(self):  # noqa: D401 - union of the members' AOVs
+    def warmup_frames(self):  # noqa: D401 - the longest warm-up of the members
+        return max([int(getattr(m, "warmup_frames", 0) or 0) for m in self._members()] + [0])
+
+    @property
+    def outputs(self):  # noqa: D401 - the chosen members' AOVs (unchosen: every AOV AUTO can give)
         out = {}
-        for m in self._members():
-            out.update(m.outputs)
+        names = self.members if self.chosen else tuple(reversed(all_members()))
+        for t in reversed(names):  # the first member's resource wins for a shared AOV name
+            out.update(get(t).outputs)
         return out
 
     def passes(self, quality):
-        groups = [m().passes(quality) for m in self._members()]
-        return merge_passes(groups)
+        return merge_passes([m().passes(quality) for m in self._members()])

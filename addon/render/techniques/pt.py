@@ -73,12 +73,16 @@ class PathTracePass(Pass):
         super().__init__(quality, **props)
         self.bvh_ms = 0.0
 
+    def shader_defines(self, rt) -> dict:
+        """The defines ``pt.comp`` is compiled with (the shared ray tracer's bindings)."""
+        return rt.defines
+
     def execute(self, rc, frame):
         rt = rc.scene.rt()  # the session's shared BVH (rebuilt there only when geometry changes)
         self.bvh_ms = rt.bvh_ms
         scene = rc.scene.scene
         cam = scene.camera
-        prog = rc.programs.compute("pt/pt.comp", rt.defines)
+        prog = rc.programs.compute("pt/pt.comp", self.shader_defines(rt))
         rt.bind(prog)
         set_uniform(prog, "u_cam_to_world", np.asarray(cam.matrix_world, np.float32))
         set_uniform(prog, "u_inv_proj", np.linalg.inv(np.asarray(cam.projection, np.float64)).astype(np.float32))

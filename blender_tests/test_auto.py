@@ -1,0 +1,127 @@
+"""AUTO: measured effect shares against Cycles' light-path passes, the skip threshold with
+its number in the reason, and the frame budget choosing between the table's candidates.
+
+Small: 24 px demo scenes, Cycles at 64 spp, the shares at 24 px and 16 spp.
+"""
+from __future__ import annotations
+
+import bpy
+import numpy as np
+import pytest
+
+from gi_preview.blender import demo_scenes, reference
+from gi_preview.render import effect_shares, session
+from gi_preview.render.gl import get_gl
+from gi_preview.render.techniques import auto
+from _helpers import export as _export
+
+SIZE = 24
+
+
+def _view_layer_state(sc):
+    vl = sc.view_layers[0]
+    return ({p: getattr(vl, p) for p in reference._PASS_PROPS.values()}, sc.compositing_node_group,
+            sc.render.use_compositing, sc.render.engine, len(bpy.data.node_groups))
+
+
+@pytest.mark.parametrize("demo", ["cornell", "glossy_spheres", "emissive_panel"])
+def test_shares_match_cycles_light_passes(demo):
+    """Every effect's share within 5 percentage points of Cycles' passes; the user's scene
+    (pass switches, compositor, engine) is left as it was."""
+    sc = demo_scenes.build_demo(demo, resolution=SIZE)
+    try:
+        sd = _export(sc)
+        gl = get_gl()
+        est = gl.call(lambda: effect_shares.estimate_offline(gl.ctx, sd, longest=SIZE))
+        before = _view_layer_state(sc)
+        cyc = reference.cycles_effect_shares(sc, 64)
+        assert _view_layer_state(sc) == before
+        assert abs(sum(est.shares.values()) - 1.0) < 1e-6
+        for e in effect_shares.EFFECTS:
+            assert abs(est.shares[e] - cyc[e]) < 0.05, (demo, e, est.shares, cyc)
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+def test_threshold_skips_with_the_share_in_the_reason_and_the_estimate_is_cached():
+    """Cornell has no glossy surface: indirect glossy is 0.0 % -> skipped, said with the
+    number; a second render of the unchanged scene and camera does not estimate again."""
+    sc = demo_scenes.build_demo("cornell", resolution=SIZE)
+    try:
+        sd = _export(sc)
+        key = "auto_threshold"
+        res = session.render(sd, "AUTO", 0, 1, session=key, auto={"candidate": auto.BUNDLE})
+        reasons = {s.name: s.reason for s in res.skipped_passes}
+        ssr = [r for n, r in reasons.items() if n.startswith("ssr")]
+        assert ssr and all(r == "indirect glossy: 0.0 % of the image -> skipped" for r in ssr), reasons
+        assert res.auto["members"] == list(auto.CANDIDATES[auto.BUNDLE][0])
+        assert res.auto["shares"]["indirect_diffuse"] > 0.3
+        n = get_gl().call(lambda: session._get_session(key)._shares.estimates)
+        session.render(sd, "AUTO", 0, 1, session=key, auto={"candidate": auto.BUNDLE}, keep_history=True,
+                       continue_accumulation=True)
+        assert get_gl().call(lambda: session._get_session(key)._shares.estimates) == n
+        session.release_session(key)
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+def test_budget_picks_cheap_or_accurate_from_the_table():
+    """On every demo scene class of the table: a 1 ms budget picks the cheapest candidate
+    (nothing fits), an unlimited one the lowest relMSE; the chosen members are reported."""
+    table = auto.load_table()
+    assert table is not None and table["rows"]
+    for name, row in table["scenes"].items():
+        shares = row["shares"]
+        cheap = auto.choose(shares, table, table["width"], table["height"], budget_ms=1.0)
+        best = auto.choose(shares, table, table["width"], table["height"], budget_ms=0.0)
+        assert cheap.scene_class == best.scene_class == name
+        cands = best.considered
+        assert cheap.candidate == min(cands, key=lambda c: cands[c][1])
+        assert best.candidate == min(cands, key=lambda c: (cands[c][0], cands[c][1]))
+        assert cheap.predicted_ms <= best.predicted_ms and best.predicted_relmse <= cheap.predicted_relmse
+        assert cheap.members == auto.CANDIDATES[cheap.candidate][0]
+        mid = auto.choose(shares, table, table["width"], table["height"], target_error=best.predicted_relmse)
+        assert mid.predicted_relmse <= best.predicted_relmse + 1e-12
+
+
+def test_budget_in_a_render_reports_the_chosen_members():
+    """A render with a tiny budget runs the cheap path, with an unlimited budget the accurate
+    one; RenderResult.auto names the members and the image is finite."""
+    sc = demo_scenes.build_demo("sunlit_room", resolution=SIZE)
+    try:
+        sd = _export(sc)
+        key = "auto_budget"
+        tiny = session.render(sd, "AUTO", 0, 1, session=key, auto={"budget_ms": 0.001})
+        big = session.render(sd, "AUTO", 0, 1, session=key, auto={"budget_ms": 0.0})
+        session.release_session(key)
+        for r in (tiny, big):
+            assert r.auto["members"] == list(auto.CANDIDATES[r.auto["candidate"]][0])
+            assert np.isfinite(r.image).all()
+        assert tiny.auto["predicted_ms"] <= big.auto["predicted_ms"]
+        assert big.auto["predicted_relmse"] <= tiny.auto["predicted_relmse"]
+        assert tiny.auto["candidate"] != big.auto["candidate"]
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+def test_budget_settings_shown_only_for_auto():
+    """Frame Budget, Target Error and Skip Below are in the Technique panel for AUTO only, and
+    reach the render as ``auto=`` options."""
+    from gi_preview.blender import properties, ui
+    from test_ui import draw
+
+    sc = bpy.data.scenes.new("auto_ui")
+    try:
+        s = sc.gi_preview
+        s.technique = "AUTO"
+        s.auto_frame_budget = 40.0
+        props = draw(ui.GIPREVIEW_RENDER_PT_technique, sc).props
+        assert {"auto_frame_budget", "auto_target_error", "auto_threshold"} <= set(props)
+        assert properties.auto_options(s, "AUTO") == {"auto": {"budget_ms": 40.0, "target_error": 0.0,
+                                                               "threshold": 0.01}}
+        s.technique = "SSDO"
+        props = draw(ui.GIPREVIEW_RENDER_PT_technique, sc).props
+        assert not {"auto_frame_budget", "auto_target_error", "auto_threshold"} & set(props)
+        assert properties.auto_options(s, "SSDO") == {}
+    finally:
+        bpy.data.scenes.remove(sc)

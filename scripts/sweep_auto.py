@@ -1,0 +1,110 @@
+"""Measure AUTO's table: per demo scene, its effect shares and, per candidate of
+``techniques/auto.py`` CANDIDATES, the relMSE against Cycles full and the ms/frame.
+
+    .venv/bin/python scripts/sweep_auto.py [--size 32] [--frames 8] [--spp 256] [--out addon/render/auto_table.json]
+    .venv/bin/python scripts/sweep_auto.py --compare   # fixed bundle vs AUTO's choice on scenes outside the table
+
+Writes ``addon/render/auto_table.json`` (the table AUTO reads). ms/frame: the median wall time
+of the accumulated frames (Mesa llvmpipe here); the Cycles references come from the cache.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _checkout import import_checkout_package  # noqa: E402
+
+import_checkout_package()
+sys.path.insert(0, str(REPO / "blender_tests"))
+import bpy  # noqa: E402,F401
+
+from gi_preview.blender import demo_scenes, reference  # noqa: E402
+from gi_preview.blender.export import export_scene  # noqa: E402
+from gi_preview.compare import metrics  # noqa: E402
+from gi_preview.render import session  # noqa: E402
+from gi_preview.render.techniques import auto  # noqa: E402
+
+DEMOS = ("cornell", "glossy_spheres", "sunlit_room", "emissive_panel", "many_lights", "courtyard_loft")
+
+
+def render(sd, candidate: str | None, frames: int, quality: int, key: str, **auto_opts):
+    opts = dict(auto_opts)
+    if candidate:
+        opts["candidate"] = candidate
+    return session.render(sd, "AUTO", quality, frames, session=key, auto=opts)
+
+
+def measure(sc, sd, ref, candidates, frames, quality, key):
+    rows, shares = [], None
+    for c in candidates:
+        t0 = time.perf_counter()
+        res = render(sd, c, frames, quality, key, threshold=0.0)
+        err = metrics.relmse(res.image, ref)
+        shares = res.auto["shares"]
+        rows.append({"candidate": c, "relmse": round(float(err), 5), "ms": round(float(res.frame_ms), 2)})
+        print(f"  {c:18s} relMSE {err:.4f}  {res.frame_ms:7.1f} ms/frame  ({time.perf_counter() - t0:.1f} s)",
+              flush=True)
+    return rows, shares
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--size", type=int, default=32)
+    ap.add_argument("--frames", type=int, default=8)
+    ap.add_argument("--quality", type=int, default=1)
+    ap.add_argument("--spp", type=int, default=256)
+    ap.add_argument("--scenes", nargs="*", default=list(DEMOS))
+    ap.add_argument("--out", default=str(REPO / "addon" / "render" / "auto_table.json"))
+    ap.add_argument("--compare", action="store_true",
+                    help="fixed bundle vs AUTO's choice on scenes outside the table (scenes_probes, scenes_screen_space)")
+    a = ap.parse_args()
+    if a.compare:
+        return compare(a)
+    table = {"width": a.size, "height": a.size, "frames": a.frames, "quality": a.quality, "reference": "full",
+             "reference_spp": a.spp, "device": "Mesa llvmpipe, 2 CPU cores", "scenes": {}, "rows": []}
+    for name in a.scenes:
+        sc = demo_scenes.build_demo(name, resolution=a.size)
+        sd = export_scene(reference.evaluated_depsgraph(sc))
+        ref = reference.get_reference(sc, "full", a.spp).image
+        key = f"sweep_{name}"
+        rows, sh = measure(sc, sd, ref, list(auto.CANDIDATES), a.frames, a.quality, key)
+        print(name, {k: round(v, 3) for k, v in sh.items()}, flush=True)
+        table["scenes"][name] = {"shares": {k: round(float(v), 5) for k, v in sh.items()}}
+        for r in rows:
+            table["rows"].append({"scene": name, **r})
+        session.release_session(key)
+        bpy.data.scenes.remove(sc)
+        with open(a.out, "w", encoding="utf-8") as f:
+            json.dump(table, f, indent=1)
+    print("wrote", a.out)
+
+
+def compare(a):
+    import scenes_probes
+    import scenes_screen_space
+
+    builds = [("white_room", scenes_probes.build), ("doorway", scenes_probes.build),
+              ("bounce_room", scenes_screen_space.build)]
+    for name, build in builds:
+        sc = build(name, a.size)
+        sd = export_scene(reference.evaluated_depsgraph(sc))
+        ref = reference.get_reference(sc, "full", a.spp).image
+        key = f"cmp_{name}"
+        old = render(sd, auto.BUNDLE, a.frames, a.quality, key, threshold=0.0)
+        new = render(sd, None, a.frames, a.quality, key)
+        e_old, e_new = metrics.relmse(old.image, ref), metrics.relmse(new.image, ref)
+        print(f"{name}: fixed bundle relMSE {e_old:.4f} ({old.frame_ms:.0f} ms/frame) | AUTO "
+              f"{new.auto['candidate']} (class {new.auto['scene_class']}) relMSE {e_new:.4f} "
+              f"({new.frame_ms:.0f} ms/frame) | shares "
+              f"{ {k: round(v, 3) for k, v in new.auto['shares'].items() if v > 0} }", flush=True)
+        session.release_session(key)
+
+
+if __name__ == "__main__":
+    main()
