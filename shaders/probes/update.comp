@@ -12,8 +12,8 @@
 // A probe relocated last frame (state w = -1) restarts like a reset one.
 // Inactive probes (RTXGI classification) keep their stored value. Rays 0..u_fixed_rays-1
 // (RTXGI's fixed set for relocation/classification) are not blended.
-// With PROBE_STATS the irradiance update also writes the per-texel relative change of the
-// stored value (RTXGI's variability, the measured convergence of the warm-up).
+// With PROBE_STATS the irradiance update also writes the per-texel signed relative change of
+// the stored value (its mean over the atlas: the drift that measures the warm-up's convergence).
 #include "lib/common.glsl"
 #include "probes/common.glsl"
 
@@ -103,7 +103,7 @@ void main() {
     vec3 v = sanitize(mix(blend, prev.rgb, h));
 #ifdef PROBE_STATS
     float lv = luminance(v);
-    imageStore(o_change, texel, vec4(abs(lv - lp) / max(lv, 1e-4), 0.0, 0.0, 0.0));
+    imageStore(o_change, texel, vec4((lv - lp) / max(lv, 1e-4), 0.0, 0.0, 0.0));
 #endif
     imageStore(o_atlas, texel, vec4(v, min(age + 1.0, 1e6)));
 #else

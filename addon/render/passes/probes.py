@@ -30,8 +30,10 @@ History: the probes' state survives light, material, transform and geometry edit
 follow a moving or switched light through hysteresis, with the fast response to large
 changes); a camera cut (a fresh F12 render) and a parameter change reset it. Warm-up: the
 update pass asks for ``warmup`` frames before an F12 render accumulates; with
-``measure_convergence`` (RTXGI) the warm-up ends earlier once the mean relative change of the
-stored irradiance per frame (the probes' variability) is below ``converge_threshold``.
+``measure_convergence`` (RTXGI) the warm-up ends earlier once the stored irradiance drifts
+by less than ``converge_threshold`` per frame: the mean over the texels of the signed relative
+change, so the ray noise of single texels (which keeps their absolute change at 2-9 % per
+frame) averages out and what remains is the light still building up.
 """
 from __future__ import annotations
 
@@ -409,7 +411,7 @@ class ProbeUpdatePass(ProbePass):
         Param("view_bias", 0.3, 0.0, 1.0, "surface bias towards the viewer (fraction of the smallest cell side)"),
         Param("warmup", 32, 0, 1024, "frames an F12 render runs before accumulating"),
         Param("converge_threshold", 0.004, 0.0, 1.0,
-              "warm-up ends when the mean relative change per frame falls below this (measured volumes)"),
+              "warm-up ends when the probes' mean signed relative change per frame falls below this (measured volumes)"),
     )
 
     quality_ladder = ({"warmup": 16}, {"warmup": 32}, {"warmup": 48}, {"warmup": 64})
@@ -483,7 +485,7 @@ class ProbeUpdatePass(ProbePass):
             return False
         rc.barrier_external([CHANGE])
         a = np.frombuffer(rc.resources[CHANGE].read(), np.float32)
-        self.variability = float(a.mean()) if a.size else 0.0
+        self.variability = abs(float(a.mean())) if a.size else 0.0
         return self.variability < float(self["converge_threshold"])
 
 

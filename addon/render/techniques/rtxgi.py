@@ -8,7 +8,7 @@ faces: inside geometry, moved past the closest back face; a front face closer th
 towards the lattice point; the offset stays inside the 0.45-cell ellipsoid); classification (inactive, not traced beyond the fixed rays and
 skipped by the lookup, when inside geometry or when no fixed ray meets a surface within the
 probe's cell); an optional camera-following volume that scrolls by whole cells
-(``probe_trace.follow_camera``); warm-up that ends when the probes' variability (mean
+(``probe_trace.follow_camera``); warm-up that ends when the probes' drift (mean signed
 relative change of the stored irradiance per frame) is below ``converge_threshold``; and
 glossy indirect light from the probes in the reflection direction
 (``color += specular albedo × E(R)/π``). The outer probes sit half a cell inside the scene's
