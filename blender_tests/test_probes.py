@@ -372,3 +372,18 @@ def test_warmup_frames_run_only_the_probe_passes():
     finally:
         session.release_session("probe_warm")
         bpy.data.scenes.remove(sc)
+
+
+def test_early_converged_warmup_still_accumulates_the_samples_asked_for():
+    """RTXGI's warm-up ends once the probes stop drifting (before its 32-frame cap on the
+    Cornell box); the render then accumulates exactly the samples asked for, not the frames
+    the warm-up left unused."""
+    sc = demo_scenes.build_demo("cornell", resolution=24)
+    try:
+        res = session.render(_export(sc), "RTXGI", 1, 3, session="probe_early")
+        print(f"\nRTXGI cornell: {res.warmup_frames} warm-up frames, {res.samples} samples")
+        assert 8 <= res.warmup_frames < 32, res.warmup_frames
+        assert res.samples == 3
+    finally:
+        session.release_session("probe_early")
+        bpy.data.scenes.remove(sc)

@@ -221,10 +221,14 @@ class Session:
         setup_ms = (time.perf_counter() - t_start) * 1e3
         frame_times, pass_ms = [], {}
         samples = max(1, int(samples))
-        total = n_warm + samples
         warm_done = 0
+        acc_done = 0  # frames accumulated by this call
         first_frame = True
-        for i in range(total):
+        i = -1
+        # the warm-up may end early (measured convergence): the render then still accumulates
+        # exactly `samples` frames
+        while acc_done < samples:
+            i += 1
             if cancel is not None and cancel.is_set():
                 if self.acc_count == 0:
                     raise Cancelled()
@@ -275,6 +279,7 @@ class Session:
             else:
                 frame_times.append(dt)
                 self.acc_count += 1
+                acc_done += 1
             if progress is not None:
                 progress((i + 1) / max(n_warm + samples, 1))
             yield (i + 1) / max(n_warm + samples, 1)
