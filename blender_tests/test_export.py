@@ -682,7 +682,8 @@ def test_export_does_not_modify_scene(scene):
     try:
         tx = bpy.data.curves.new("txt", "FONT")
         sc.collection.objects.link(bpy.data.objects.new("text", tx))
-        _noise_into_roughness(sc.objects["glossy_spheres.floor"].data.materials[0])
+        (floor,) = [o for o in sc.objects if o.name.startswith("glossy_spheres.floor")]
+        _noise_into_roughness(floor.data.materials[0])
         depsgraph(sc)  # evaluation itself updates matrix_world; snapshot after it
         before = _snapshot(sc)
         sd = export(sc)
