@@ -6,6 +6,12 @@ Run with the bpy module (each checkout is measured in a child process of its own
     git worktree add /tmp/gi_before COMMIT         # the checkout to compare against
     python scripts/bench_viewport.py --before /tmp/gi_before [--out DIR]
 
+``--fps`` measures something else: viewport frames per second of DIRECT, SVGF, RTXGI and AUTO
+at 64 x 64, 128 x 128 and 256 x 256 on a closed one-light room built here (not a demo scene),
+for both checkouts, and writes ``viewport_fps.md`` / ``.json``:
+
+    python scripts/bench_viewport.py --fps --before /tmp/gi_before --out docs/results
+
 or measure one checkout at a time (``--measure CHECKOUT --json FILE``) and write the report
 from the two files (``--report BEFORE.json AFTER.json``). Writes ``viewport_benchmark.md`` and
 ``.json`` into ``--out``, default ``out/bench/viewport/`` (the page
@@ -261,12 +267,146 @@ def measure(checkout: str) -> dict:
     return out
 
 
+def _room_scene(bpy):
+    """A closed 4 x 3 x 2.5 m room (white walls, one red wall, a box), one area light in a
+    corner under the ceiling, the camera inside: a scene no technique was tuned on."""
+    sc = bpy.data.scenes.new("fps_room")
+    mats = {}
+    for name, col in (("white", (0.75, 0.75, 0.75)), ("red", (0.7, 0.1, 0.08)), ("box", (0.3, 0.5, 0.7))):
+        m = bpy.data.materials.new(f"fps_{name}")
+        m.diffuse_color = (*col, 1.0)
+        bsdf = m.node_tree.nodes.get("Principled BSDF") if m.node_tree else None
+        if bsdf is not None:
+            bsdf.inputs["Base Color"].default_value = (*col, 1.0)
+            bsdf.inputs["Roughness"].default_value = 0.8
+        mats[name] = m
+
+    def box(name, lo, hi, side_mat, other_mat, inward):
+        """An axis-aligned box; its +x face (index 3) gets side_mat, the others other_mat."""
+        me = bpy.data.meshes.new(name)
+        (x0, y0, z0), (x1, y1, z1) = lo, hi
+        v = [(x0, y0, z0), (x1, y0, z0), (x1, y1, z0), (x0, y1, z0), (x0, y0, z1), (x1, y0, z1), (x1, y1, z1),
+             (x0, y1, z1)]
+        f = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+        me.from_pydata(v, [], [tuple(reversed(q)) for q in f] if inward else f)
+        me.materials.append(mats[other_mat])
+        me.materials.append(mats[side_mat])
+        for poly in me.polygons:
+            poly.material_index = 1 if poly.index == 3 else 0
+        sc.collection.objects.link(bpy.data.objects.new(name, me))
+
+    box("fps_room", (-2, -1.5, 0), (2, 1.5, 2.5), "red", "white", True)
+    box("fps_box", (-0.4, -0.2, 0), (0.4, 0.6, 0.9), "box", "box", False)
+    ld = bpy.data.lights.new("fps_light", "AREA")
+    ld.energy, ld.size = 150.0, 0.5
+    light = bpy.data.objects.new("fps_light", ld)
+    light.location = (1.5, 1.0, 2.4)
+    sc.collection.objects.link(light)
+    cd = bpy.data.cameras.new("fps_cam")
+    cd.lens = 18.0
+    cam = bpy.data.objects.new("fps_cam", cd)
+    cam.location = (-1.8, -1.3, 1.4)
+    cam.rotation_euler = (1.3, 0.0, -0.95)
+    sc.collection.objects.link(cam)
+    sc.camera = cam
+    w = bpy.data.worlds.new("fps_world")
+    w.color = (0, 0, 0)
+    sc.world = w
+    return sc
+
+
+FPS_TECHNIQUES = ("DIRECT", "SVGF", "RTXGI", "AUTO")
+FPS_SIZES = (64, 128, 256)
+
+
+def measure_fps(checkout: str, frames: int = 12) -> dict:
+    """Viewport frames per second for FPS_TECHNIQUES x FPS_SIZES (quality 1) on _room_scene:
+    ``frames`` accumulated viewport frames after 3 warm-up frames (shaders, uploads, probe
+    start), wall time from the first view_draw to the last image handed to Blender."""
+    _import_checkout(checkout)
+    import bpy
+
+    import gi_preview
+    from gi_preview.blender import engine as E
+
+    gi_preview.register()
+    uploads = []
+    _fake_gpu(uploads)
+    out = {"checkout": checkout, "fps": {}}
+    sc = _room_scene(bpy)
+    with bpy.context.temp_override(scene=sc, view_layer=sc.view_layers[0]):
+        dg = bpy.context.evaluated_depsgraph_get()
+    for tech in FPS_TECHNIQUES:
+        for size in FPS_SIZES:
+            sc.render.resolution_x = sc.render.resolution_y = size
+            sc.gi_preview.technique = tech
+            sc.gi_preview.quality = 1
+            sc.gi_preview.viewport_scale = 1.0
+            sc.gi_preview.viewport_samples = 10000
+            view = sc.camera.matrix_world.inverted()
+            proj = sc.camera.calc_matrix_camera(dg, x=size, y=size)
+            rv3d = types.SimpleNamespace(view_matrix=view, window_matrix=proj, is_perspective=True)
+            ctx = types.SimpleNamespace(region=types.SimpleNamespace(width=size, height=size), region_data=rv3d,
+                                        scene=sc)
+            eng = types.SimpleNamespace(_viewport=E.ViewportState(), update_stats=lambda a, b: None,
+                                        tag_redraw=lambda: None, bind_display_space_shader=lambda s: None,
+                                        unbind_display_space_shader=lambda: None)
+            st = eng._viewport
+            E.view_update(eng, ctx, dg)
+
+            def draw(n):
+                target = len(uploads) + n
+                t0 = time.perf_counter()
+                while len(uploads) < target:
+                    E.view_draw(eng, ctx, dg)
+                    fut = getattr(st, "future", None)
+                    if fut is not None:
+                        fut.result()
+                return time.perf_counter() - t0
+
+            draw(3)
+            n = frames if size < 256 else max(4, frames // 2)
+            wall = draw(n)
+            out["fps"][f"{tech}@{size}"] = n / wall
+            print(tech, size, f"{n / wall:.2f} fps", flush=True)
+            if hasattr(st, "free"):
+                st.free()
+    from gi_preview.render.gl import get_gl
+
+    out["gl_renderer"] = get_gl().info.get("GL_RENDERER")
+    return out
+
+
+def report_fps(before: dict, after: dict, out_dir: Path, before_label: str, after_label: str):
+    out_dir.mkdir(parents=True, exist_ok=True)
+    (out_dir / "viewport_fps.json").write_text(json.dumps({"before": before, "after": after,
+                                                            "machine": platform.platform(),
+                                                            "cpus": os.cpu_count()}, indent=1))
+    lines = ["# Viewport frames per second: before / after", "",
+             f"`python scripts/bench_viewport.py --fps --before CHECKOUT` (before = {before_label}, after = "
+             f"{after_label}; the numbers are in viewport_fps.json). A closed one-light room built by the script "
+             f"(not a demo scene), quality 1, the viewport driven through the engine's view_draw; frames per "
+             f"second over {12} accumulated frames (6 at 256 x 256) after 3 warm-up frames. "
+             f"{after.get('gl_renderer')} on {os.cpu_count()} CPU cores: these are software-OpenGL rates, "
+             "compare them as ratios only.", "",
+             "| technique | size | before fps | after fps | after / before |", "|---|---:|---:|---:|---:|"]
+    for key, a in after["fps"].items():
+        tech, size = key.split("@")
+        b = before["fps"].get(key)
+        ratio = f"{a / b:.2f}x" if b else "-"
+        lines.append(f"| {tech} | {size} x {size} | {b:.2f} | {a:.2f} | {ratio} |" if b else
+                     f"| {tech} | {size} x {size} | - | {a:.2f} | - |")
+    (out_dir / "viewport_fps.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
 # ------------------------------------------------------------------ parent: both, report
-def _run_child(checkout: str) -> dict:
+def _run_child(checkout: str, fps: bool = False) -> dict:
     with tempfile.NamedTemporaryFile(suffix=".json", delete=False) as f:
         path = f.name
     env = dict(os.environ, BLENDER_USER_RESOURCES=tempfile.mkdtemp(prefix="gi_bench_user_"))
-    subprocess.run([sys.executable, __file__, "--measure", checkout, "--json", path], check=True, env=env)
+    subprocess.run([sys.executable, __file__, "--measure", checkout, "--json", path] + (["--fps"] if fps else []),
+                   check=True, env=env)
     with open(path) as f:
         return json.load(f)
 
@@ -346,22 +486,31 @@ def main():
                     help="output folder (default: out/bench/viewport; the docs page: docs/results)")
     ap.add_argument("--measure", help="measure one checkout (child mode)")
     ap.add_argument("--json", help="child mode: write the numbers here")
+    ap.add_argument("--fps", action="store_true",
+                    help="measure viewport frames per second of DIRECT, SVGF, RTXGI, AUTO at 64/128/256 px")
     ap.add_argument("--report", nargs=2, metavar=("BEFORE_JSON", "AFTER_JSON"),
                     help="write the report from two saved --measure outputs")
     args = ap.parse_args()
+    if args.report and args.fps:
+        report_fps(json.loads(Path(args.report[0]).read_text()), json.loads(Path(args.report[1]).read_text()),
+                   Path(args.out), args.before_label, args.after_label)
+        return
     if args.report:
         report(json.loads(Path(args.report[0]).read_text()), json.loads(Path(args.report[1]).read_text()),
                Path(args.out), args.before_label, args.after_label)
         return
     if args.measure:
-        res = measure(args.measure)
+        res = measure_fps(args.measure) if args.fps else measure(args.measure)
         if args.json:
             Path(args.json).write_text(json.dumps(res))
         return
     if not args.before:
         ap.error("--before CHECKOUT is required (git worktree add /tmp/gi_before COMMIT)")
-    before = _run_child(args.before)
-    after = _run_child(args.after)
+    before = _run_child(args.before, args.fps)
+    after = _run_child(args.after, args.fps)
+    if args.fps:
+        report_fps(before, after, Path(args.out), args.before_label, args.after_label)
+        return
     report(before, after, Path(args.out), args.before_label, args.after_label)
 
 
