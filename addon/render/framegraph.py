@@ -18,7 +18,9 @@ The pass contract (docs/ARCHITECTURE.md has the full table):
   the memory barriers from them. ``external``: objects the graph does not own.
 * ``history_resets``: which events invalidate the pass's history: ``camera_cut``,
   ``param_change`` and the scene edits ``geometry``, ``transforms``, ``materials``,
-  ``lights``, ``textures`` (``SCENE_EDIT`` is all five). The graph applies them: it clears the
+  ``lights`` (any light or the world changed), ``light_set`` (which lights there are changed:
+  one added, removed or of another type, the emissive instances, the world; always with
+  ``lights``), ``textures`` (``SCENE_EDIT`` is all six). The graph applies them: it clears the
   pass's history resources and hands the pass ``history_valid = False`` for that frame.
 * ``warmup_frames``: frames a pass's state needs to converge before an F12 render starts
   accumulating (probes, caches, reservoirs); ``converged(rc)`` may end the warm-up early.
@@ -77,7 +79,8 @@ class ValidationError(RuntimeError):
 # ---------------------------------------------------------------- history events
 CAMERA_CUT = "camera_cut"
 PARAM_CHANGE = "param_change"
-SCENE_EDITS = ("geometry", "transforms", "materials", "lights", "textures")
+LIGHT_SET = "light_set"  # which lights there are: added, removed, type changed; emissive instances; the world
+SCENE_EDITS = ("geometry", "transforms", "materials", "lights", LIGHT_SET, "textures")
 SCENE_EDIT = frozenset(SCENE_EDITS)
 ALL_EVENTS = frozenset({CAMERA_CUT, PARAM_CHANGE}) | SCENE_EDIT
 PREV = "@prev"  # suffix: last frame's value of a history resource

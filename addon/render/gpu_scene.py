@@ -282,6 +282,9 @@ class GPUScene:
         self.draws: list[tuple] = []  # (key, model matrix, normal matrix, instance id)
         self.material_buf = None
         self.light_buf = None
+        self.light_prev_buf = None  # last update's lights (see update)
+        self._light_prev_stale = False
+        self.light_array = None  # the packed lights of the last update
         self.emitter_buf = None
         self.textures = None
         self.world = WorldGPU(ctx)
@@ -296,7 +299,7 @@ class GPUScene:
         self.version = 0  # bumps on any change (history invalidation)
         # per kind of change (update()'s keys): bumps when that part changed, so a cache can
         # depend on only what it reads (VXGI's voxels: geometry, transforms, materials, textures)
-        self.versions = {"geometry": 0, "transforms": 0, "materials": 0, "lights": 0, "textures": 0}
+        self.versions = {"geometry": 0, "transforms": 0, "materials": 0, "lights": 0, "light_set": 0, "textures": 0}
         self.setup_ms = 0.0  # one-time work (BVH builds, uploads) done for this scene so far, in ms
 
     # ------------------------------------------------------------------ upload
@@ -305,13 +308,14 @@ class GPUScene:
         scene-edit events, ``framegraph.SCENE_EDITS``): ``geometry`` (a mesh was added,
         removed or its vertex data changed, or instances were added/removed), ``transforms``
         (only instance matrices changed: nothing is re-uploaded but the matrices),
-        ``materials``, ``lights``, ``textures``.
+        ``materials``, ``lights``, ``light_set`` (which lights there are; see
+        ``framegraph.LIGHT_SET``), ``textures``.
 
         Motion: the previous matrices are kept per instance id (``SceneData.instance_ids``),
         so every instance of one object, moving on its own, gets its own motion vectors.
         An instance new since the last update has no previous transform (no motion)."""
         changes = {"geometry": False, "transforms": False, "materials": False, "lights": False,
-                   "textures": False}
+                   "light_set": False, "textures": False}
         # geometry
         keys = []
         needed = set()
@@ -404,13 +408,26 @@ class GPUScene:
         self.emitters = EmitterSet(scene)
         lights = pack_lights(scene, self.emitters)
         fp_l = hashlib.blake2b(lights.tobytes() + self.emitters.array.tobytes(), digest_size=16).hexdigest()
+        # last frame's lights (light_prev_buf): what RESTIR_DI's reuse weights after a light edit
+        # are evaluated with; written when the lights change and once more the update after
+        prev = self.light_array
+        if fp_l != self._fp.get("lights") or self._light_prev_stale or self.light_prev_buf is None:
+            self._replace("light_prev_buf", lights if prev is None or prev.shape != lights.shape else prev)
+            self._light_prev_stale = fp_l != self._fp.get("lights")
         if fp_l != self._fp.get("lights"):
             self._replace("light_buf", lights)
             self._replace("emitter_buf", self.emitters.array)
             self._fp["lights"] = fp_l
             changes["lights"] = True
+        # which lights there are, by index: what light-relative samples (RESTIR_DI) refer to
+        fp_set = hashlib.blake2b(repr(([(L.name, int(L.type), L.radius > 0.0, 0.5 * L.angle > 1e-6) for L in scene.lights],
+                                       [(g["instance"], g["count"]) for g in self.emitters.groups])).encode(),
+                                 digest_size=16).hexdigest()
+        if fp_set != self._fp.get("light_set"):
+            self._fp["light_set"] = fp_set
+            changes["light_set"] = changes["lights"] = True
         if self.world.update(scene.world):
-            changes["lights"] = True  # the world is a light (its map and sampling tables)
+            changes["lights"] = changes["light_set"] = True  # the world is a light (its map and sampling tables)
         self.light_count = len(scene.lights) + len(self.emitters.groups)
         self.emitter_count = self.emitters.count
         self.light_array = lights
@@ -521,7 +538,7 @@ class GPUScene:
         for vbo, _ in self._vbos.values():
             if vbo is not None:
                 vbo.release()
-        for attr in ("material_buf", "light_buf", "emitter_buf", "textures"):
+        for attr in ("material_buf", "light_buf", "light_prev_buf", "emitter_buf", "textures"):
             obj = getattr(self, attr)
             if obj is not None:
                 obj.release()

@@ -208,6 +208,58 @@ void light_shape_point(Light L, vec3 y, out vec3 ny, out vec3 Le) {
     Le = L.color.rgb / (PI * r * r);  // sphere radiance = I / (pi r^2)
 }
 
+// A sample on light L in the light's own frame (light_to_local) and back in world space
+// (light_from_local, with the light's normal and radiance there as they are now): what a
+// sample keeps from frame to frame so that it follows the light when the light moves, turns,
+// scales or changes colour. Delta points and suns without size keep nothing (their one point
+// or direction); sphere lights keep the unit offset from the centre; area lights the point's
+// coordinates along the two half-extent axes; sun disks the direction in the sun's frame.
+// Mesh lights are not handled here: their points live on the instance's triangles.
+vec3 light_to_local(Light L, vec3 y) {
+    int type = int(L.pos_type.w + 0.5);
+    if (light_is_delta(L)) return vec3(0.0);
+    if (type == LIGHT_SUN) return to_local(y, -L.dir_radius.xyz);
+    if (type == LIGHT_AREA) {
+        vec3 d = y - L.pos_type.xyz;
+        return vec3(dot(d, L.axis_u.xyz) / max(dot(L.axis_u.xyz, L.axis_u.xyz), 1e-30),
+                    dot(d, L.axis_v.xyz) / max(dot(L.axis_v.xyz, L.axis_v.xyz), 1e-30), 0.0);
+    }
+    return (y - L.pos_type.xyz) / max(L.dir_radius.w, 1e-30);  // sphere
+}
+
+void light_from_local(Light L, vec3 local, out vec3 y, out vec3 ny, out vec3 Le) {
+    int type = int(L.pos_type.w + 0.5);
+    ny = vec3(0.0, 0.0, 1.0);
+    if (type == LIGHT_SUN) {
+        float a = L.dir_radius.w;
+        bool delta = a <= 1e-6;
+        y = delta ? -L.dir_radius.xyz : normalize(to_world(local, -L.dir_radius.xyz));
+        Le = delta ? L.color.rgb : L.color.rgb / (PI * sin(a) * sin(a));
+        return;
+    }
+    if (light_is_delta(L)) {  // point, spot without size: the intensity, as sample_light gives it
+        y = L.pos_type.xyz;
+        Le = L.color.rgb;
+        return;
+    }
+    if (type == LIGHT_AREA) y = L.pos_type.xyz + local.x * L.axis_u.xyz + local.y * L.axis_v.xyz;
+    else y = L.pos_type.xyz + L.dir_radius.w * normalize(local);
+    light_shape_point(L, y, ny, Le);
+}
+
+// |d y_now / d y_then| for one light-relative sample: how the light's measure changed between two
+// states of the light (area: area; sphere: r^2; sun disk: the disk's solid angle; else 1). A
+// contribution weight made for the light as it was is multiplied by it to serve the light as
+// it is.
+float light_local_jacobian(Light now, Light then) {
+    int type = int(now.pos_type.w + 0.5);
+    if (type != int(then.pos_type.w + 0.5) || light_is_delta(now) || light_is_delta(then)) return 1.0;
+    if (type == LIGHT_AREA) return now.axis_v.w / max(then.axis_v.w, 1e-30);
+    if (type == LIGHT_SUN) return (1.0 - cos(now.dir_radius.w)) / max(1.0 - cos(then.dir_radius.w), 1e-30);
+    if (type == LIGHT_MESH) return 1.0;
+    return (now.dir_radius.w * now.dir_radius.w) / max(then.dir_radius.w * then.dir_radius.w, 1e-30);
+}
+
 // Solid-angle pdf with which sample_light(L, p, ...) produces the direction towards y, a point
 // of the light with normal ny (suns: y is the direction). Delta lights: 1. Mesh lights: 0 here;
 // theirs is emitter_probability x area_to_solid_angle_pdf of y's triangle, which the caller

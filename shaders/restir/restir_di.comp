@@ -19,7 +19,9 @@
 // VISIBILITY REUSE: the chosen sample's shadow ray; occluded -> W = 0.
 // TEMPORAL REUSE (u_temporal, STAGE 0): last frame's final reservoir at the pixel reprojected
 //   through gbuffer.motion (plane distance and normal tests against the surface it was made
-//   for, restir.pos/nrm@prev), its M capped at u_m_cap x M.
+//   for, restir.pos/nrm@prev), its M capped at u_m_cap x M. Reservoirs are stored
+//   light-relative (see fetch); after a light edit (u_lights_edited) last frame's reservoir is
+//   weighted with last frame's lights (lights_prev).
 // SPATIAL REUSE (STAGE 1): u_spatial neighbours in a u_radius-pixel disk (depth within 10 %,
 //   normals within ~25 deg).
 // COMBINING reservoirs r_i (sample y_i, W_i, M_i, made at surface x_i) at pixel x: resampling
@@ -92,6 +94,7 @@ uniform int u_bsdf_analytic;  // 1: BSDF candidates see area, sphere and sun-dis
 uniform int u_bsdf_glossy;    // BSDF candidates on glossy pixels (they always see those lights)
 uniform float u_glossy_rough; // a pixel is glossy below this roughness with a mostly specular lobe
 uniform int u_temporal;
+uniform int u_lights_edited;  // 1: a light or an emissive object changed since last frame
 uniform int u_spatial;
 uniform int u_shade_all;
 uniform float u_radius;      // spatial radius, a fraction of the image's larger side
@@ -131,22 +134,59 @@ Shading load(ivec2 q) {
 }
 
 // ------------------------------------------------------------------ samples
-struct Sample { vec3 y; int li; vec3 n; vec3 Le; };
+struct Sample { vec3 y; int li; vec3 n; vec3 Le; bool prev; };  // prev: y is on lights_prev[li] (last frame's)
 struct Reservoir { Sample x; float wsum; float M; float W; float own; };  // own: p^ at the surface it was made for
 
 bool finite4(vec4 v) { return !any(isnan(v)) && !any(isinf(v)); }
+
+// Reservoirs are stored light-relative (store_reservoir, fetch): a sample on a light keeps its
+// coordinates in the light's frame (lib/lights.glsl light_to_local), a sample on an emissive
+// mesh its point and normal in the instance's object space, and each is rebuilt from the light
+// as it is now when read. Moving, turning, scaling or recolouring a light (or moving an
+// emissive object) keeps temporal reuse: the samples follow the light, and the reuse weights
+// are evaluated with its new radiance. Only a change of which lights there are (the host's
+// "light_set" event: lights added, removed or changed in type, the emissive instances, the
+// world) resets the reservoirs. The world's samples (li = -1) are directions with their
+// radiance.
+layout(std430, binding = 17) readonly buffer PrevLightBuffer { Light lights_prev[]; };  // last frame's
+
+// The same light-relative sample on the light as it was last frame (mesh lights and the world:
+// unchanged).
+Sample sample_on_prev_light(Sample x) {
+    if (x.li < 0 || int(lights[x.li].pos_type.w + 0.5) == LIGHT_MESH) return x;
+    Sample o = x;
+    light_from_local(lights_prev[x.li], light_to_local(lights[x.li], x.y), o.y, o.n, o.Le);
+    o.prev = true;
+    return o;
+}
+
+int mesh_instance(Light L) { return int(emitters[int(L.axis_w.x + 0.5)].p1.w + 0.5); }
+
+void sample_from_stored(inout Sample x, vec3 local, vec3 n_stored) {
+    if (x.li < 0) { x.n = n_stored; return; }
+    Light L = lights[x.li];
+    if (int(L.pos_type.w + 0.5) == LIGHT_MESH) {
+        RtInstance inst = rt_instances[mesh_instance(L)];
+        x.y = (inst.object_to_world * vec4(local, 1.0)).xyz;
+        x.n = normalize(transpose(mat3(inst.world_to_object)) * n_stored);
+        return;  // x.Le: the stored radiance (an emission edit is a material edit)
+    }
+    light_from_local(L, local, x.y, x.n, x.Le);
+}
 
 // A stored reservoir; anything non-finite or out of range reads as empty (NaN in history is
 // gone after one frame).
 Reservoir fetch(ivec2 q) {
     Reservoir r;
     vec4 a = texelFetch(u_in_y, q, 0), m = texelFetch(u_in_meta, q, 0), l = texelFetch(u_in_le, q, 0);
-    r.x.y = a.xyz; r.x.li = int(floor(a.w + 0.5)); r.x.n = oct_decode(m.zw); r.x.Le = l.rgb;
+    r.x.y = a.xyz; r.x.li = int(floor(a.w + 0.5)); r.x.n = oct_decode(m.zw); r.x.Le = l.rgb; r.x.prev = false;
     r.wsum = 0.0; r.W = m.x; r.M = m.y; r.own = l.w;
     if (!finite4(a) || !finite4(m) || !finite4(l) || r.x.li < -1 || r.x.li >= u_light_count || m.x <= 0.0
         || m.y <= 0.0 || any(lessThan(l, vec4(0.0)))) {
         r.W = 0.0; r.M = (finite4(m) && m.y > 0.0) ? m.y : 0.0; r.x.li = -1; r.x.Le = vec3(0.0);
+        return r;
     }
+    sample_from_stored(r.x, a.xyz, r.x.n);
     return r;
 }
 
@@ -159,7 +199,7 @@ vec3 contrib_g(Shading sh, Sample x, out vec3 dir, out float dist, out bool cast
     if (x.li < 0) {                       // the world, reached by a BSDF ray
         dir = x.y; dist = T_INF; casts = true;
     } else {
-        Light L = lights[x.li];
+        Light L = x.prev ? lights_prev[x.li] : lights[x.li];
         casts = L.axis_w.w > 0.5;
         Le *= light_eval_point(L, sh.p, x.y, x.n, dir, dist, G);
         if (max3(Le) <= 0.0) return vec3(0.0);
@@ -208,7 +248,7 @@ bool update(inout Reservoir r, Sample x, float w, float M, float xi) {
 
 Reservoir empty_reservoir() {
     Reservoir r;
-    r.x.y = vec3(0.0); r.x.li = -1; r.x.n = vec3(0.0, 0.0, 1.0); r.x.Le = vec3(0.0);
+    r.x.y = vec3(0.0); r.x.li = -1; r.x.n = vec3(0.0, 0.0, 1.0); r.x.Le = vec3(0.0); r.x.prev = false;
     r.wsum = 0.0; r.M = 0.0; r.W = 0.0; r.own = 0.0;
     return r;
 }
@@ -276,7 +316,7 @@ bool is_glossy(Shading sh) {
 // the probability shade_direct gives it) as a Sample; pl = its solid-angle pdf (delta:
 // selection prob.)
 bool light_candidate(Shading sh, vec4 u, out Sample x, out float pl) {
-    x.li = -1; x.y = vec3(0.0); x.n = vec3(0.0, 0.0, 1.0); x.Le = vec3(0.0); pl = 0.0;
+    x.li = -1; x.y = vec3(0.0); x.n = vec3(0.0, 0.0, 1.0); x.Le = vec3(0.0); x.prev = false; pl = 0.0;
     if (u.x < u_world_select) {
         float pw;
         x.y = world_sample(u.yz, pw);
@@ -312,7 +352,7 @@ bool light_candidate(Shading sh, vec4 u, out Sample x, out float pl) {
 // surface, else the emissive triangle it hits (its mesh light), else on a miss a sun disk or
 // the world. pb = BSDF pdf (solid angle), pl = the light strategy's pdf of the same sample.
 bool bsdf_candidate(Shading sh, vec3 u, bool analytic, out Sample x, out float pb, out float pl) {
-    x.li = -1; x.y = vec3(0.0); x.n = vec3(0.0, 0.0, 1.0); x.Le = vec3(0.0); pl = 0.0;
+    x.li = -1; x.y = vec3(0.0); x.n = vec3(0.0, 0.0, 1.0); x.Le = vec3(0.0); x.prev = false; pl = 0.0;
     vec3 d = sample_principled(sh.s, sh.N, sh.V, u, pb);
     if (pb <= 0.0 || dot(d, sh.Ng) <= 0.0) return false;
     SurfaceHit hs;
@@ -413,8 +453,19 @@ Reservoir candidates(Shading sh, inout Rng rng) {
 #if RESTIR_STAGE < 2
 void store_reservoir(ivec2 px, Reservoir r) {
     bool ok = r.W > 0.0 && r.x.li >= -1;
-    imageStore(o_y, px, vec4(r.x.y, float(r.x.li)));
-    imageStore(o_meta, px, vec4(ok ? r.W : 0.0, r.M, oct_encode(r.x.n)));
+    vec3 local = r.x.y, n = r.x.n;  // light-relative, as fetch reads it
+    if (ok && r.x.li >= 0) {
+        Light L = lights[r.x.li];
+        if (int(L.pos_type.w + 0.5) == LIGHT_MESH) {
+            RtInstance inst = rt_instances[mesh_instance(L)];
+            local = (inst.world_to_object * vec4(r.x.y, 1.0)).xyz;
+            n = normalize(transpose(mat3(inst.object_to_world)) * r.x.n);
+        } else {
+            local = light_to_local(L, r.x.y);
+        }
+    }
+    imageStore(o_y, px, vec4(local, float(r.x.li)));
+    imageStore(o_meta, px, vec4(ok ? r.W : 0.0, r.M, oct_encode(n)));
     imageStore(o_le, px, vec4(r.x.Le, ok ? r.own : 0.0));
 }
 #endif
@@ -462,15 +513,20 @@ void main() {
                       && dot(pn, sh.N) > 0.9;                                   // normal
             Reservoir p = fetch(q);
             if (ok && p.M > 0.0) {
+                if (u_lights_edited == 1 && p.x.li >= 0) p.W *= light_local_jacobian(lights[p.x.li], lights_prev[p.x.li]);
                 float Mp = min(p.M, u_m_cap * Mc);
                 Shading ps = make_shading(pp.xyz, pn, png, sh.s, true);  // the surface it was made for
                 float pc_c = target(sh, r.x), pc_p = target(sh, p.x);
                 float mc = Mc / (Mc + Mp), mp = Mp / (Mc + Mp);  // 1/M
                 if (u_bias_mode >= 1) {
                     // two reservoirs: the pairwise weights reduce to the balance heuristic
-                    float Ac = Mc * pc_c, Ap = Mp * target_vis(ps, r.x, u_bias_mode == 2);
+                    // Ap: how likely last frame's reservoir was to hold r.x, so with last frame's
+                    // lights (after a light edit: the same light-relative sample on the light as
+                    // it was); p.own: p^ where p.x was kept (visible there), last frame
+                    Sample xr = u_lights_edited == 1 ? sample_on_prev_light(r.x) : r.x;
+                    float Ac = Mc * pc_c, Ap = Mp * target_vis(ps, xr, u_bias_mode == 2);
                     mc = Ac + Ap > 0.0 ? Ac / (Ac + Ap) : 0.0;
-                    float Bp = Mp * p.own, Bc = Mc * pc_p;  // p.own: p^ where p.x was kept (visible there)
+                    float Bp = Mp * p.own, Bc = Mc * pc_p;
                     mp = Bp + Bc > 0.0 ? Bp / (Bp + Bc) : 0.0;
                 }
                 Reservoir t = empty_reservoir();

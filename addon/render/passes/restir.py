@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..barriers import SHADER_IMAGE_ACCESS_BARRIER_BIT, TEXTURE_FETCH_BARRIER_BIT
-from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Effect, Param, Pass, Res
+from ..framegraph import CAMERA_CUT, LIGHT_SET, PARAM_CHANGE, Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, EMISSION, GEONORMAL, MOTION, NORMAL, POSITION
 from .screen_space import camera_vectors
@@ -49,9 +49,10 @@ class RestirDIPass(Pass):
                 *(Res(h, history=True) for h in _HIST),
                 Res("restir.pos", history=True, clear=(0.0, 0.0, 0.0, -1.0)), Res("restir.nrm", history=True),
                 *(Res(t) for t in _TMP))
-    # reservoirs hold light samples: a light or geometry edit invalidates them; camera and
-    # object motion are followed by reprojection
-    history_resets = frozenset({CAMERA_CUT, PARAM_CHANGE, "geometry", "lights", "materials"})
+    # reservoirs hold light-relative samples (restir_di.comp): they follow a light that moves or
+    # changes; a change of which lights there are (LIGHT_SET), geometry or materials invalidates
+    # them; camera and object motion are followed by reprojection
+    history_resets = frozenset({CAMERA_CUT, PARAM_CHANGE, "geometry", LIGHT_SET, "materials"})
     warmup_frames = 4
     params = (
         Param("candidates", 32, 0, 256, "RIS light candidates (by power) per pixel per frame"),
@@ -97,10 +98,12 @@ class RestirDIPass(Pass):
         for stage in ((2,) if baseline else (0, 1)):
             prog = rc.programs.compute("restir/restir_di.comp", {**rt.defines, "RESTIR_STAGE": str(stage)})
             rt.bind(prog)
+            rc.scene.light_prev_buf.bind_to_storage_buffer(17)  # restir_di.comp: lights_prev
             bind_reuse_frame(prog, frame, self.history_valid)
             set_uniform(prog, "u_light_cands", int(self["candidates"]))
             t = int(self["temporal"])
             set_uniform(prog, "u_temporal", int(t == 1 or (t == 2 and int(frame.index) == 0)))
+            set_uniform(prog, "u_lights_edited", int(bool({"lights", "transforms"} & set(frame.scene_edits))))
             for k in ("bsdf_cands", "spatial", "shade_all", "bias_mode", "baseline_spp", "baseline_bsdf"):
                 set_uniform(prog, "u_" + k, int(self["bsdf_candidates" if k == "bsdf_cands" else k]))
             set_uniform(prog, "u_bsdf_analytic", analytic)
