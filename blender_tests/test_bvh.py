@@ -303,3 +303,37 @@ def test_gpu_no_self_intersection_at_grazing_angles(gl):
     assert valid.sum() > n // 2
     same = valid & (hit_inst == src_inst)
     assert same.sum() == 0, f"{same.sum()} of {valid.sum()} grazing rays re-hit their own object"
+
+
+def test_blas_cache_shares_builds_and_rebuilds_only_edited_meshes():
+    """Per-mesh BLAS come from the process-wide cache: a second export of the same scene (another
+    session, or the same one after an edit elsewhere) builds no BLAS and gives the same node
+    arrays; editing one mesh's positions rebuilds that mesh only; a UV edit rebuilds none."""
+    from gi_preview.render.bvh import BLAS_CACHE
+
+    BLAS_CACHE.clear()
+    h0, m0 = BLAS_CACHE.hits, BLAS_CACHE.misses
+    SceneBVH = B.SceneBVH
+    a = SceneBVH.from_scene(make_scene())
+    assert (BLAS_CACHE.hits - h0, BLAS_CACHE.misses - m0) == (0, 3)
+    b = SceneBVH.from_scene(make_scene())  # new Mesh objects with the same content
+    assert (BLAS_CACHE.hits - h0, BLAS_CACHE.misses - m0) == (3, 3)
+    assert np.array_equal(a.blas_nodes, b.blas_nodes) and np.array_equal(a.tlas_nodes, b.tlas_nodes)
+
+    sc = make_scene()
+    box_mesh = sc.meshes[1]
+    sc.meshes[1] = make_mesh("box", box() * 1.5)
+    c = SceneBVH.from_scene(sc)
+    assert (BLAS_CACHE.hits - h0, BLAS_CACHE.misses - m0) == (5, 4)
+    assert not np.array_equal(a.blas_nodes, c.blas_nodes)
+    sc.meshes[1] = Mesh(box_mesh.name, box_mesh.positions, box_mesh.normals, box_mesh.uvs + 0.25,
+                        box_mesh.material_ids)
+    d = SceneBVH.from_scene(sc)
+    assert (BLAS_CACHE.hits - h0, BLAS_CACHE.misses - m0) == (8, 4)
+    assert np.array_equal(a.blas_nodes, d.blas_nodes)
+
+    small = type(BLAS_CACHE)(max_triangles=box().shape[0])  # holds one box, evicts the oldest
+    small.get(make_mesh("x", box()), box().reshape(-1, 3))
+    small.get(make_mesh("y", box() * 2), (box() * 2).reshape(-1, 3))
+    small.get(make_mesh("x", box()), box().reshape(-1, 3))
+    assert (small.hits, small.misses) == (0, 3)

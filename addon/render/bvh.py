@@ -1,6 +1,7 @@
 """Two-level bounding volume hierarchy for GPU ray tracing (bpy-free, numpy only).
 
-* Bottom level (BLAS): one BVH per mesh, in object space, built once per mesh by a binned
+* Bottom level (BLAS): one BVH per mesh, in object space, built once per mesh (``BLAS_CACHE``:
+  shared by every session, rebuilt only for meshes whose positions change) by a binned
   surface-area-heuristic builder (Wald 2007, "On fast construction of SAH-based bounding
   volume hierarchies"). The build is *level-synchronous*: every node of one tree depth is
   binned and split in the same handful of vectorised numpy calls (``np.minimum.at`` over
@@ -32,7 +33,9 @@ triangle_offset)``; ``material_map``: int[] per-instance material remaps.
 """
 from __future__ import annotations
 
+import hashlib
 import time
+from collections import OrderedDict
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -318,6 +321,61 @@ def build_blas(positions: np.ndarray, max_leaf: int = MAX_LEAF) -> BVH:
     return build_bvh(lo, hi, max_leaf=max_leaf)
 
 
+def positions_key(positions: np.ndarray, max_leaf: int = MAX_LEAF) -> str:
+    """What a mesh's BLAS depends on: a hash of its corner positions (and the leaf size)."""
+    a = np.ascontiguousarray(positions, np.float32)
+    h = hashlib.blake2b(digest_size=16)
+    h.update(f"{a.shape}:{max_leaf}".encode())
+    h.update(a.tobytes())
+    return h.hexdigest()
+
+
+class BlasCache:
+    """Process-wide least-recently-used store of per-mesh BLAS, keyed by ``positions_key``.
+    Every session of a scene (F12, each viewport) shares a mesh's build, an edit of one mesh
+    rebuilds that mesh only, and UV, normal or material edits rebuild none. A mesh's key is
+    kept on the mesh object (``_gi_blas_key``), which the exporter hands back unchanged while
+    its geometry is unchanged. Bounded by the triangles it holds (a BLAS costs about 70 bytes
+    per triangle). GL thread only (not locked)."""
+
+    def __init__(self, max_triangles: int = 4_000_000):
+        self.max_triangles = int(max_triangles)
+        self._items: OrderedDict = OrderedDict()  # key -> BVH
+        self._triangles = 0
+        self.hits = 0
+        self.misses = 0
+
+    def get(self, mesh, positions: np.ndarray, max_leaf: int = MAX_LEAF) -> BVH:
+        key = getattr(mesh, "_gi_blas_key", None)
+        if key is None or not key.endswith(f":{max_leaf}"):
+            key = positions_key(positions, max_leaf) + f":{max_leaf}"
+            try:
+                mesh._gi_blas_key = key
+            except AttributeError:  # a mesh type without attributes: hash every time
+                pass
+        bvh = self._items.get(key)
+        if bvh is not None:
+            self._items.move_to_end(key)
+            self.hits += 1
+            return bvh
+        self.misses += 1
+        bvh = build_blas(positions, max_leaf=max_leaf)
+        n = len(bvh.prim_order)
+        self._items[key] = bvh
+        self._triangles += n
+        while self._triangles > self.max_triangles and len(self._items) > 1:
+            _, old = self._items.popitem(last=False)
+            self._triangles -= len(old.prim_order)
+        return bvh
+
+    def clear(self) -> None:
+        self._items.clear()
+        self._triangles = 0
+
+
+BLAS_CACHE = BlasCache()
+
+
 def transform_aabb(lo: np.ndarray, hi: np.ndarray, matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """World AABB of an object-space box under a 4x4 affine matrix (Arvo 1990)."""
     m = np.asarray(matrix, np.float64)
@@ -363,7 +421,7 @@ class SceneBVH:
         for mesh in scene.meshes:
             T = mesh.triangle_count
             pos = np.asarray(mesh.positions, np.float32).reshape(-1, 3)
-            bvh = build_blas(pos, max_leaf=max_leaf)
+            bvh = BLAS_CACHE.get(mesh, pos, max_leaf)
             blas_list.append(bvh)
             nd = bvh.nodes.copy()
             lof = nd[:, 3].view(np.int32)
