@@ -4,9 +4,10 @@
 // illumination and moments through gbuffer.motion
 // (bilinear 2x2, each tap kept only if its surface lies on this pixel's plane, has a similar
 // normal and projects near this pixel), integrates with an exponential moving average
-// alpha = max(1/len, 1/u_max_history), and estimates the luminance variance from the
-// temporal moments, or spatially (7x7, edge-stopped) while the history is shorter than 4;
-// the variance handed to the à-trous is that of the integrated signal (samples' / len).
+// alpha = max(1/len, 1/u_max_history) (the moments with at least u_moments_alpha, as in the
+// paper), and estimates the luminance variance from the temporal moments, or spatially (7x7,
+// edge-stopped) while the history is shorter than 4; the variance handed to the à-trous is
+// that of the integrated signal (samples' / len: the paper hands over the samples' variance).
 // History taps that are not finite are rejected, so NaN in history is gone within a frame.
 #define USE_SCENE_BUFFERS
 #define USE_SCENE_BUFFERS
@@ -37,6 +38,7 @@ uniform sampler2D u_hist_pos;
 uniform sampler2D u_hist_nrm;
 uniform int u_reset;
 uniform float u_max_history;
+uniform float u_moments_alpha;  // least weight of this frame in the moments (the paper's 0.2)
 uniform float u_edge_len;      // history length cap at moving geometric-edge pixels (0: off)
 uniform float u_len_cap;       // history length cap of this frame (a light edit: light_history; else 1e9)
 
@@ -117,7 +119,7 @@ void main() {
         len = min(min(hlen, u_len_cap) + 1.0, max(u_max_history, 1.0));
         float a = 1.0 / len;
         c = mix(hc, c, a);
-        mom = mix(hm, mom, a);
+        mom = mix(hm, mom, max(a, u_moments_alpha));
     }
     float var = max(mom.y - mom.x * mom.x, 0.0);
     if (len < 4.0) {  // too little history: spatial estimate of the moments (7x7, edge-stopped)

@@ -175,6 +175,11 @@ class SVGFPass(_FilterPass):
         # 1.58x -> 0.92x Cycles', trail 2.63x -> 1.90x (16 paired draws); the price is a 2-frame lag while the
         # light moves (relMSE moving: median equal, mean +18 %). As TAA's. docs/techniques/SVGF.md
         LIGHT_HISTORY,
+        # moments_alpha 0.2 (the paper's; against the colour's 1/32): held relMSE 0.0281/0.0065/0.0134/0.0478
+        # -> 0.0266/0.0064/0.0134/0.0462 on cornell:pan, sunlit_room:pan, sunlit_room:light, cornell:orbit
+        # (48 px, 2 draws), trails 1.18/1.62/1.25/1.43x -> 1.20/1.24/1.23/1.35x the still level
+        Param("moments_alpha", 0.2, 0.0, 1.0, "least weight of the current frame in the luminance moments the "
+              "variance comes from (they follow changes faster than the colour)"),
     )
     quality_ladder = ({"iterations": 3}, {"iterations": 4}, {"iterations": 5}, {"iterations": 6})
 
@@ -193,6 +198,7 @@ class SVGFPass(_FilterPass):
         self._set_history_uniforms(prog, frame)
         set_uniform(prog, "u_max_history", float(self["max_history"]))
         set_uniform(prog, "u_edge_len", float(self["edge_history"]))
+        set_uniform(prog, "u_moments_alpha", float(self["moments_alpha"]))
         for unit, name in enumerate(("svgf.a", "svgf.moments", "svgf.pos", "svgf.nrm", "svgf.dbg_var", "svgf.dbg_len")):
             res[name].bind_to_image(unit, read=False, write=True)
         self._run(rc, prog)
