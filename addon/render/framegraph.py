@@ -919,8 +919,11 @@ class FrameGraph:
                 self.validation_log.append(msg)
                 raise ValidationError(msg)
 
-    def execute(self, rc: RenderContext, frame: FrameState, *, timers: bool = True) -> dict[str, float]:
-        """Run the planned passes in order with barriers; returns GPU ms per pass."""
+    def execute(self, rc: RenderContext, frame: FrameState, *, timers=True) -> dict[str, float]:
+        """Run the planned passes in order with barriers; returns GPU ms per pass. ``timers``:
+        True times each pass with a blocking GPU query, False with the CPU clock, a
+        ``frame_sync.FrameTimers`` with queries read later (the returned dict is then empty:
+        the results arrive in the FrameTimers)."""
         if self._plan is None:
             raise RuntimeError("FrameGraph.execute before plan()")
         self.allocate(rc)
@@ -954,7 +957,14 @@ class FrameGraph:
                 self._barrier_before(rc, p)
             if check is not None:
                 check.begin(rc, p, self)
-            if timers:
+            if timers is not None and timers is not False and timers is not True:
+                # a frame_sync.FrameTimers: GPU timer queries read a frame or two later
+                timers.begin(p.name)
+                try:
+                    p.execute(rc, frame)
+                finally:
+                    timers.end()
+            elif timers:
                 q = rc.ctx.query(time=True)
                 t0 = time.perf_counter()
                 with q:
