@@ -180,7 +180,6 @@ class FrameTimers:
         # moderngl reads the result as 32 bits (clamped at 2^32-1 ns): past that, the wall time
         self.results[name] = ((time.perf_counter() - self._t0) * 1e3 if ns >= 0xFFFFFFFF
                               else (ns / 1e6 if ns else 0.0))
-        self._q.release()
         self._q = None
 
     def collect(self) -> bool:

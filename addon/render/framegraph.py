@@ -406,7 +406,11 @@ class RenderContext:
         if cur is None or prev is None:
             return
         self.resources[name], self.resources[name + PREV] = prev, cur
-        self.specs[name], self.specs[name + PREV] = self.specs[name + PREV], self.specs[name]
+        sp_cur, sp_prev = self.specs.pop(name, None), self.specs.pop(name + PREV, None)
+        if sp_prev is not None:  # (unmanaged history has no spec)
+            self.specs[name] = sp_prev
+        if sp_cur is not None:
+            self.specs[name + PREV] = sp_cur
         s_cur, s_prev = self.sync.pop(name, None), self.sync.pop(name + PREV, None)
         if s_cur is not None:
             self.sync[name + PREV] = s_cur
@@ -420,7 +424,7 @@ class RenderContext:
         if obj is None:
             return
         decl = self.specs.get(name, (None,))[0]
-        kind = decl.kind if decl is not None else TEX2D
+        kind = decl.kind if decl is not None else (BUFFER if self.is_buffer(name) else TEX2D)
         if kind == HOST:
             return
         with _graph_op():
