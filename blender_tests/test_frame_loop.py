@@ -21,7 +21,7 @@ import pytest
 
 from gi_preview.blender import demo_scenes, reference
 from gi_preview.blender.export import export_scene
-from gi_preview.render import frame_sync, session
+from gi_preview.render import frame_sync, session, sync_check
 from gi_preview.render.gl import get_gl
 
 
@@ -182,7 +182,18 @@ def many_lights():
     bpy.data.scenes.remove(sc)
 
 
-def test_first_frame_ranks_by_intensity_over_distance(many_lights):
+@pytest.fixture
+def validating():
+    sync_check.enable(True)
+    sync_check.VALIDATOR.take()
+    yield
+    sync_check.VALIDATOR.take()
+    sync_check.enable(False)
+
+
+def test_first_frame_ranks_by_intensity_over_distance(many_lights, validating):
+    """Also under sync validation: the read-back of last frame's bounds is declared and
+    ordered after the culling's stores by a barrier (a render with a finding raises)."""
     key = "loop_budget"
     params = {"shadows": {"max_shadow_maps": 3}}
     session.render(many_lights, "DIRECT", 1, 1, session=key, params=params)
