@@ -409,7 +409,11 @@ class RenderContext:
         if cur is None or prev is None:
             return
         self.resources[name], self.resources[name + PREV] = prev, cur
-        self.specs[name], self.specs[name + PREV] = self.specs[name + PREV], self.specs[name]
+        sp_cur, sp_prev = self.specs.pop(name, None), self.specs.pop(name + PREV, None)
+        if sp_prev is not None:  # (unmanaged history has no spec)
+            self.specs[name] = sp_prev
+        if sp_cur is not None:
+            self.specs[name + PREV] = sp_cur
         s_cur, s_prev = self.sync.pop(name, None), self.sync.pop(name + PREV, None)
         if s_cur is not None:
             self.sync[name + PREV] = s_cur
@@ -423,7 +427,7 @@ class RenderContext:
         if obj is None:
             return
         decl = self.specs.get(name, (None,))[0]
-        kind = decl.kind if decl is not None else TEX2D
+        kind = decl.kind if decl is not None else (BUFFER if self.is_buffer(name) else TEX2D)
         if kind == HOST:
             return
         with _graph_op():
@@ -922,8 +926,11 @@ class FrameGraph:
                 self.validation_log.append(msg)
                 raise ValidationError(msg)
 
-    def execute(self, rc: RenderContext, frame: FrameState, *, timers: bool = True) -> dict[str, float]:
-        """Run the planned passes in order with barriers; returns GPU ms per pass."""
+    def execute(self, rc: RenderContext, frame: FrameState, *, timers=True) -> dict[str, float]:
+        """Run the planned passes in order with barriers; returns GPU ms per pass. ``timers``:
+        True times each pass with a blocking GPU query, False with the CPU clock, a
+        ``frame_sync.FrameTimers`` with queries read later (the returned dict is then empty:
+        the results arrive in the FrameTimers)."""
         if self._plan is None:
             raise RuntimeError("FrameGraph.execute before plan()")
         self.allocate(rc)
@@ -957,7 +964,14 @@ class FrameGraph:
                 self._barrier_before(rc, p)
             if check is not None:
                 check.begin(rc, p, self)
-            if timers:
+            if timers is not None and timers is not False and timers is not True:
+                # a frame_sync.FrameTimers: GPU timer queries read a frame or two later
+                timers.begin(p.name)
+                try:
+                    p.execute(rc, frame)
+                finally:
+                    timers.end()
+            elif timers:
                 q = rc.ctx.query(time=True)
                 t0 = time.perf_counter()
                 with q:

@@ -26,8 +26,9 @@ class RenderResult:
     aovs: render-pass name -> (H, W, C) float32, same orientation ("Depth", "Normal",
           "DiffCol", "Emit", and one per effect a technique provides, e.g. "GI_AO").
     pass_ms: per pass, GPU time of the last frame in milliseconds (timer queries).
-    frame_ms: median wall time of one frame (all passes, synchronised) in milliseconds,
-              without one-time setup (shader compiles, BVH builds) that happened in a frame.
+    frame_ms: mean time of one accumulated frame in milliseconds, completion to completion
+              (frames overlap: the CPU records one while the GPU runs the previous), without
+              one-time setup (shader compiles, BVH builds) that happened in a frame.
     """
 
     image: np.ndarray

@@ -21,7 +21,7 @@ import numpy as np
 
 from . import techniques
 from .analysis import analyse
-from . import framegraph
+from . import frame_sync, framegraph
 from .framegraph import CAMERA_CUT, SCENE_EDITS, FrameState, RenderContext
 from .gl import PRIORITY_BACKGROUND, PRIORITY_INTERACTIVE, PRIORITY_NORMAL, get_gl
 from .gpu_scene import GPUScene, set_uniform
@@ -219,7 +219,11 @@ class Session:
         if warmup if warmup is not None else (fresh and not keep_history):
             n_warm = max(int(getattr(tech, "warmup_frames", 0) or 0), graph.warmup_frames())
         setup_ms = (time.perf_counter() - t_start) * 1e3
-        frame_times, pass_ms = [], {}
+        pass_ms = {}
+        sync = frame_sync.for_context(self.ctx)
+        frames_acc = []  # the accumulated frames (frame_sync.Frame): their times
+        frames_all = []  # every frame of this call: the last one's timers are the pass times
+        prev_frame = None  # the frame before the first accumulated one (its completion starts the clock)
         samples = max(1, int(samples))
         warm_done = 0
         acc_done = 0  # frames accumulated by this call
@@ -254,9 +258,10 @@ class Session:
                                camera_cut=cut and first_frame, scene_changed=bool(edits) and first_frame,
                                scene_edits=frozenset(edits) if first_frame else frozenset(),
                                seed=seed, warmup=is_warm, keeps_history=bool(keep_history))
-            t0 = time.perf_counter()
+            # frame N waits here for frame N-2: at most two frames in flight, no glFinish
+            fr = sync.begin_frame()
             setup_f0 = self._setup_clock()
-            pass_ms = graph.execute(self.rc, frame, timers=True)
+            graph.execute(self.rc, frame, timers=fr.timers)
             if not is_warm:
                 w = 1.0 / (k + 1)
                 for aov, res_name in outputs.items():
@@ -264,11 +269,15 @@ class Session:
                         self._accumulate(aov, res_name, w)
                 if scene.film_transparent and "gbuffer.position" in written:
                     self._accumulate("Alpha", "gbuffer.position", w, coverage=True)
-            self.ctx.finish()
+            sync.end_frame(fr)
             # one-time work done inside this frame (shader compiles, BVH builds) is setup
             in_frame_setup = self._setup_clock() - setup_f0
             setup_ms += in_frame_setup
-            dt = (time.perf_counter() - t0) * 1e3 - in_frame_setup
+            fr.excluded_ms = in_frame_setup
+            frames_all.append(fr)
+            for old in frames_all[:-3]:  # timers of frames whose results nobody reads
+                old.timers.drop()
+            del frames_all[:-3]
             self.prev_view_proj = vp
             self.sample_counter += 1
             first_frame = False
@@ -277,7 +286,9 @@ class Session:
                 if graph.converged(self.rc):
                     n_warm = warm_done  # measured: state settled early
             else:
-                frame_times.append(dt)
+                if not frames_acc:
+                    prev_frame = frames_all[-2] if len(frames_all) > 1 else None
+                frames_acc.append(fr)
                 self.acc_count += 1
                 acc_done += 1
             if progress is not None:
@@ -285,6 +296,18 @@ class Session:
             yield (i + 1) / max(n_warm + samples, 1)
         if self.acc_count == 0:
             raise Cancelled()
+        # the read-back below is of the last frame: wait for its fence (and so for every
+        # frame before it), then read the timers of the latest frame that has them
+        if frames_all:
+            sync.wait(frames_all[-1])
+        for fr in reversed(frames_all):
+            if fr.timers.collect():
+                pass_ms = dict(fr.timers.results)
+                break
+        for fr in frames_all:
+            fr.timers.drop()
+        frame_times = frame_sync.frame_interval_ms(frames_acc, prev_frame) if frames_acc and all(
+            f.done for f in frames_acc) else []
         self.rc.barrier_external(list(self.acc_keys()))
         image = self._read(self.acc["Combined"])
         alpha_note = None
@@ -310,7 +333,7 @@ class Session:
             warnings.append(alpha_note)
         return RenderResult(
             image=image, aovs=aovs, technique=technique, quality=quality, samples=self.acc_count,
-            pass_ms=pass_ms, frame_ms=float(statistics.median(frame_times)) if frame_times else 0.0,
+            pass_ms=pass_ms, frame_ms=float(statistics.fmean(frame_times)) if frame_times else 0.0,
             total_ms=(time.perf_counter() - t_start) * 1e3, effects=effects,
             skipped_passes=list(plan.skipped), warnings=warnings,
             cancelled=bool(cancel is not None and cancel.is_set()),
@@ -420,6 +443,7 @@ def release_all():
     for s in _sessions.values():
         s.release()
     _sessions.clear()
+    frame_sync.release_all()
 
 
 def _release_session(key) -> bool:

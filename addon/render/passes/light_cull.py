@@ -14,14 +14,17 @@ does not list with light samples chosen by power (unbiased, a little noise that
 accumulates away). The culling is a cost/noise trade-off, not a bias.
 
 The result (``LightCull``, a host object in ``rc.resources["direct.light_cull"]``) also
-feeds the shadow pass's budget: the lights that matter most in view get shadow maps.
+feeds the shadow pass's budget: the lights that matter most in view get shadow maps. The
+tile bounds are a history resource: the budget reads last frame's (``direct.tile_bounds@prev``)
+so that nothing is read back in the middle of a frame; where there is no last frame (the
+first frame, a camera cut, a scene edit) it ranks lights by intensity / squared distance.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..barriers import BUFFER_UPDATE_BARRIER_BIT
-from ..framegraph import BUFFER, HOST, Param, Pass, Res
+from ..framegraph import BUFFER, HOST, PREV, Param, Pass, Res
 from ..gpu_scene import LIGHT_MESH, set_uniform
 from ..scene_data import LightType
 from .gbuffer import POSITION
@@ -126,7 +129,9 @@ class LightCuller:
             setattr(self, attr, buf)
         return buf
 
-    def run(self, rc, frame, cull_fraction: float, position_tex=None) -> LightCull:
+    def run(self, rc, frame, cull_fraction: float, position_tex=None, bounds=None) -> LightCull:
+        """Cull this frame's tiles; ``bounds``: a callable ``bounds(nbytes)`` giving the buffer
+        the tile bounds go to (default: the culler's own)."""
         gs = rc.scene
         n = int(gs.light_count)
         key = (gs.version, id(gs.scene), float(cull_fraction))
@@ -139,7 +144,7 @@ class LightCuller:
         tiles = tx * ty
         cap = max(1, min(max(n, 1), MAX_TILE_LIST_BYTES // (4 * tiles) - 1))
         tl = self._buffer(rc.ctx, "tile_lights", tiles * (cap + 1) * 4)
-        tb = self._buffer(rc.ctx, "tile_bounds", tiles * 32)
+        tb = bounds(tiles * 32) if bounds is not None else self._buffer(rc.ctx, "tile_bounds", tiles * 32)
         prog = rc.programs.compute("direct/light_cull.comp")
         gs.bind(prog)
         tex = position_tex if position_tex is not None else rc.resources[POSITION]
@@ -186,15 +191,24 @@ def light_scores(ctx, cull: LightCull, indices) -> np.ndarray:
     """Estimated contribution of lights ``indices`` to the visible pixels: for each tile with
     geometry, pixels x I / d^2 from the light to the nearest point of the tile's box (d at
     least the light's size and 1 % of the scene radius); lights outside a tile's range add 0."""
+    return scores_from_bounds(read_tile_bounds(ctx, cull), cull.info, indices)
+
+
+def scores_from_bounds(tb: np.ndarray, info: dict, indices) -> np.ndarray | None:
+    """:func:`light_scores` from tile bounds ``tb`` ((tiles, 2, 4), read_tile_bounds' layout)
+    and the ranges ``info`` (light_ranges); None when no tile holds geometry (bounds never
+    written, or cleared)."""
     idx = np.asarray(list(indices), int)
+    geo = tb[:, 0, 3] > 0
+    if not geo.any():
+        return None
     if idx.size == 0:
         return np.zeros(0)
-    tb = read_tile_bounds(ctx, cull)
-    geo = tb[:, 0, 3] > 0
     lo, hi, npx = tb[geo, 0, :3].astype(np.float64), tb[geo, 1, :3].astype(np.float64), tb[geo, 0, 3].astype(np.float64)
-    info = cull.info
     D = info["scene_radius"]
     out = np.zeros(idx.size)
+    if info["ranges"].shape[0] <= int(idx.max()):
+        return None  # bounds of another light set
     for s in range(0, idx.size, 128):
         part = idx[s:s + 128]
         c = info["ranges"][part, :3].astype(np.float64)
@@ -209,17 +223,21 @@ def light_scores(ctx, cull: LightCull, indices) -> np.ndarray:
 
 
 class LightCullPass(Pass):
-    """Per-tile light lists of this frame (before the shadow pass: its budget reads them)."""
+    """Per-tile light lists of this frame; the tile bounds are kept for the next frame's
+    shadow budget (``direct.tile_bounds@prev``)."""
 
     name = "light_cull"
     always = True  # DIRECT's lighting needs it (DirectLightPass culls inline in graphs without it)
     reads = (POSITION,)
     writes = (TILE_LIGHTS, TILE_BOUNDS, LIGHT_CULL)
-    # sizes depend on the light count: the pass allocates them (managed=False)
+    # sizes depend on the light count and the frame: the pass allocates them (managed=False);
+    # the tile bounds are double-buffered by the graph (history) for the next frame's budget
     declared = (Res(TILE_LIGHTS, kind=BUFFER, dtype="i4", managed=False, check="none"),
-                Res(TILE_BOUNDS, kind=BUFFER, managed=False, check="none"),
+                Res(TILE_BOUNDS, kind=BUFFER, managed=False, check="none", history=True),
                 Res(LIGHT_CULL, kind=HOST, managed=False, check="none"))
-    history_resets = frozenset()
+    # last frame's bounds describe another view or scene after these (the graph clears them:
+    # a cleared buffer holds no tile with geometry, and the budget ranks by distance)
+    history_resets = frozenset({"camera_cut", "geometry", "transforms", "lights", "param_change"})
     params = (
         Param("cull_fraction", 0.05, 0.0, 1.0,
               "range of influence: where a light's radiance falls below this fraction of all lights' (0 = no culling)"),
@@ -230,8 +248,20 @@ class LightCullPass(Pass):
         self.culler = LightCuller()
         self.last: LightCull | None = None
 
+    def _bounds(self, rc, nbytes: int):
+        """This frame's tile-bounds buffer (the graph swapped last frame's to ``@prev``); both
+        made, zeroed, when missing or of another size (zero: no tile holds geometry)."""
+        for n in (TILE_BOUNDS + PREV, TILE_BOUNDS):
+            b = rc.resources.get(n)
+            if b is None or b.size != nbytes:
+                if b is not None:
+                    b.release()
+                rc.resources[n] = rc.ctx.buffer(data=bytes(nbytes))
+                rc.sync.pop(n, None)
+        return rc.resources[TILE_BOUNDS]
+
     def execute(self, rc, frame):
-        cull = self.culler.run(rc, frame, float(self["cull_fraction"]))
+        cull = self.culler.run(rc, frame, float(self["cull_fraction"]), bounds=lambda nb: self._bounds(rc, nb))
         rc.resources[TILE_LIGHTS] = cull.tile_lights
         rc.resources[TILE_BOUNDS] = cull.tile_bounds
         rc.resources[LIGHT_CULL] = cull

@@ -24,11 +24,11 @@ import math
 
 import numpy as np
 
-from ..framegraph import BUFFER, HOST, Effect, Param, Pass, Res
+from ..framegraph import BUFFER, HOST, PREV, Effect, Param, Pass, Res
 from ..gpu_scene import LIGHT_MESH, set_uniform
 from ..scene_data import LightType
 from ..world_map import world_map_of
-from .light_cull import LIGHT_CULL, TILE_BOUNDS, light_scores
+from .light_cull import LIGHT_CULL, TILE_BOUNDS, scores_from_bounds
 
 ATLAS, VIEWS, WORLD_RANGE = "shadow.atlas", "shadow.views", "shadow.world_range"
 SCENE_LIGHTS = "scene.lights"  # the GPU scene's light buffer: the pass writes each light's view range
@@ -118,6 +118,20 @@ def _halton(i: int, b: int) -> float:
     return r
 
 
+def first_frame_scores(gpu_scene, camera_position, indices, info: dict | None = None) -> np.ndarray:
+    """The budget's ranking without tile bounds: peak intensity (W/sr; light_cull.light_ranges'
+    ``intensity`` when known, else the light's colour) over the squared distance to the camera."""
+    idx = np.asarray(list(indices), int)
+    arr = gpu_scene.light_array
+    cam = np.asarray(camera_position, np.float64)
+    d2 = np.sum((arr[idx, 0:3].astype(np.float64) - cam) ** 2, axis=1)
+    if info is not None and len(info["intensity"]) > int(idx.max(initial=-1)):
+        inten = np.asarray(info["intensity"], np.float64)[idx]
+    else:
+        inten = np.max(arr[idx, 8:11], axis=1).astype(np.float64)
+    return inten / np.maximum(d2, 1e-6)
+
+
 class ShadowPass(Pass):
     """Renders the shadow atlas and the view table for every light that casts shadows."""
 
@@ -125,7 +139,9 @@ class ShadowPass(Pass):
     provides = frozenset({Effect.SHADOWS, Effect.ENVIRONMENT})
     kind = "raster"
     writes = (ATLAS, VIEWS, WORLD_RANGE, SHADOW_SELECTION, SCENE_LIGHTS)
-    optional_reads = (LIGHT_CULL, TILE_BOUNDS)  # the budget ranks lights by the visible tiles
+    # the budget ranks lights by last frame's visible tiles (read back: no mid-frame stall)
+    optional_reads = (LIGHT_CULL, TILE_BOUNDS + PREV)
+    read_access = {TILE_BOUNDS + PREV: "readback"}
     # sizes depend on the lights: the pass allocates them (managed=False); the views are
     # written from the CPU, the world range is a Python object
     declared = (Res(ATLAS, components=1, dtype="f4", managed=False, check="none"),
@@ -161,6 +177,7 @@ class ShadowPass(Pass):
         self.tiles_drawn = 0  # views drawn in the last execute (the rest kept from earlier frames)
         self._mapped = set()
         self.selection = None
+        self.ranked_by = None  # how the last budget ranked lights: "tiles" (last frame's) or "distance"
 
     def reset_history(self):
         super().reset_history()
@@ -383,8 +400,9 @@ class ShadowPass(Pass):
     def _select(self, rc, frame) -> ShadowSelection:
         """The shadow-map budget: every shadow-casting point, spot, area and mesh light when
         they fit in ``max_shadow_maps``; else the ones with the largest estimated contribution
-        to this frame's visible pixels (light_cull.light_scores over the tiles' G-buffer
-        bounds; without this frame's culling: intensity / squared distance to the camera)."""
+        to the visible pixels (light_cull.scores_from_bounds over last frame's tile bounds of
+        the G-buffer; on the first frame, or without culling: intensity / squared distance to
+        the camera)."""
         scene = rc.scene.scene
         cands = [li for li, L in enumerate(scene.lights)
                  if L.cast_shadow and float(np.max(L.color)) > 0 and L.type != LightType.SUN]
@@ -393,13 +411,17 @@ class ShadowPass(Pass):
         if len(cands) <= budget:
             return ShadowSelection(frame, cands, [], budget)
         cull = rc.resources.get(LIGHT_CULL)
-        if cull is not None and cull.frame is frame:
-            score = light_scores(rc.ctx, cull, cands)
-        else:
-            arr = rc.scene.light_array
-            cam = np.asarray(scene.camera.position, np.float64)
-            d2 = np.sum((arr[cands, 0:3].astype(np.float64) - cam) ** 2, axis=1)
-            score = np.max(arr[cands, 8:11], axis=1) / np.maximum(d2, 1e-6)
+        score = None
+        if cull is not None and cull.frame is frame and TILE_BOUNDS + PREV in rc.resources:
+            nbytes = cull.n_tiles * 32
+            data = rc.read_back(TILE_BOUNDS + PREV)
+            if len(data) >= nbytes:
+                tb = np.frombuffer(data[:nbytes], np.float32).reshape(-1, 2, 4)
+                score = scores_from_bounds(tb, cull.info, cands)
+        self.ranked_by = "tiles" if score is not None else "distance"
+        if score is None:
+            score = first_frame_scores(rc.scene, scene.camera.position, cands,
+                                       cull.info if cull is not None and cull.frame is frame else None)
         order = np.argsort(-score, kind="stable")
         keep = sorted(int(cands[i]) for i in order[:budget])
         rest = sorted(set(cands) - set(keep))
