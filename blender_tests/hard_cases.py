@@ -14,13 +14,14 @@ Each scene is a few objects, one material a surface, lit by lamps, emitters or a
 * ``camera_inside``: the camera inside a closed box that holds a dim lamp; a bright lamp and a
   lit floor outside. Cycles sees the inside of the box lit by its lamp only.
 * ``emissive_only``: a closed room lit only by an emissive panel (no lamp, black world).
-* ``many_lights``: a floor and boxes under a 40 x 50 grid of 2,000 small coloured point lamps.
+* ``many_lights``: a floor and boxes under a 100 x 100 grid of 10,000 small coloured point lamps.
 * ``tiny_scale``: a lit room 4 mm across (every length x 0.001, lamp power x 1e-6).
 * ``huge_scale``: the same room 10 km across (every length x 2500, lamp power x 2500^2).
 * ``hdri_sun``: an HDR world map (128 x 64, float) of a dim blue sky with one texel of sun
   10^5 x brighter than the sky, over a floor and boxes.
-* ``animated``: a box that crosses the frame in 4 frames (1 m a frame), rendered frame by
-  frame with history kept; judged on its last frame.
+* ``animated``: a box that crosses the frame in 4 frames (1 m a frame), the camera panning
+  0.3 m and the lamp moving 0.5 m a frame, rendered frame by frame with history kept; judged
+  on its last frame.
 * ``degenerate``: a floor and a box with zero-area triangles (three equal corners), collinear
   triangles and 1e-6-wide slivers among the faces, under a lamp.
 * ``z_fighting``: two coincident planes of different colours (red and green) and a blue one
@@ -221,12 +222,12 @@ def _emissive_only(b, mp, mw):
 def _many_lights(b, mp, mw):
     _floor_and_boxes(b, mp, mw, lamp=False)
     rng = np.random.default_rng(7)
-    nx, ny = 40, 50
+    nx, ny = 100, 100
     for i in range(nx):
         for j in range(ny):
             col = tuple(float(c) for c in 0.3 + 0.7 * rng.random(3))
             b.light(f"lamp_{i}_{j}", "POINT", (-4 + 8 * (i + 0.5) / nx, -4 + 8 * (j + 0.5) / ny, 2.5),
-                    energy=0.5, color=col, shadow_soft_size=0.05)
+                    energy=0.1, color=col, shadow_soft_size=0.02)
     b.scene.world = mw(b.n("world"), (0.0, 0.0, 0.0), 0.0)
 
 
@@ -286,12 +287,17 @@ def _animated(b, mp, mw):
     blue = mp(b.n("blue"), (0.1, 0.2, 0.7), 0.4)
     mover = b.box("mover", (0.6, 0.6, 0.6), blue, location=(-1.5, -0.8, 1.0))
     f0, f1 = ANIMATED_FRAMES[0], ANIMATED_FRAMES[-1]
-    for f, x in ((f0, -1.5), (f1, -1.5 + (f1 - f0))):
-        mover.location.x = x
-        mover.keyframe_insert("location", frame=f)
-    for fc in _fcurves(mover):
-        for kp in fc.keyframe_points:
-            kp.interpolation = "LINEAR"
+    cam = b.scene.camera
+    lamp = next(o for o in b.scene.objects if o.type == "LIGHT")
+    # (object, axis, value at f0, change per frame): the box 1 m a frame, the camera 0.3 m, the lamp 0.5 m
+    moves = ((mover, 0, -1.5, 1.0), (cam, 0, cam.location.x - 0.45, 0.3), (lamp, 1, lamp.location.y - 0.75, 0.5))
+    for ob, axis, v0, dv in moves:
+        for f in (f0, f1):
+            ob.location[axis] = v0 + dv * (f - f0)
+            ob.keyframe_insert("location", frame=f)
+        for fc in _fcurves(ob):
+            for kp in fc.keyframe_points:
+                kp.interpolation = "LINEAR"
     b.scene.frame_start, b.scene.frame_end = f0, f1
     b.scene.frame_set(f1)
 
