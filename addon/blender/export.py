@@ -49,6 +49,7 @@ from .material_nodes import Capture, follow_link
 __all__ = ["export_scene", "SceneExporter", "instance_id", "DEFAULT_MATERIAL_NAME"]
 
 DEFAULT_MATERIAL_NAME = "GI Preview Default"
+MISSING_IMAGE_RGBA = (1.0, 0.0, 1.0, 1.0)  # what Cycles shows for an image without pixels
 _GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
 _TO_MESH_TYPES = {"CURVE", "SURFACE", "FONT", "META"}
 _AREA_SHAPES = {"SQUARE": AreaShape.SQUARE, "RECTANGLE": AreaShape.RECTANGLE,
@@ -925,7 +926,17 @@ class _Exporter:
                 self.warn(warn)
             idx = len(self.data.textures)
             self.data.textures.append(tex)
-        elif w > 0 and h > 0:
+        elif w == 0 or h == 0:
+            # a missing or unreadable file: Cycles shows such an image as magenta, so do we
+            warn = (f"Image '{image.name}': no pixels (file '{image.filepath}' missing or unreadable); "
+                    "rendered magenta, as Cycles does")
+            self.warn(warn)
+            idx = len(self.data.textures)
+            tex = Texture(name=image.name, pixels=np.array([[MISSING_IMAGE_RGBA]], np.float32))
+            self.data.textures.append(tex)
+            if self.cache is not None:
+                self.cache._textures[(key, w, h)] = (tex, warn)
+        else:
             px = np.empty(w * h * 4, np.float32)
             image.pixels.foreach_get(px)
             px = px.reshape(h, w, 4)

@@ -113,9 +113,12 @@ Surface gbuffer_surface(Material m, vec4 albedo, vec4 normal, vec4 geonormal, ve
     return make_surface(m, albedo.rgb);
 }
 
-// GGX normal distribution.
+// GGX normal distribution. The denominator is written as sin^2 + cos^2 a2 so that it stays
+// positive in float32 for a mirror (a2 = 1e-8 at roughness 0: the usual (a2 - 1) NoH^2 + 1
+// rounds a2 - 1 to -1 and gives 0 at NoH = 1, i.e. D = inf and f / pdf = NaN).
 float ggx_D(float NoH, float a2) {
-    float d = (NoH * a2 - NoH) * NoH + 1.0;
+    float c2 = NoH * NoH;
+    float d = max(1.0 - c2, 0.0) + c2 * a2;
     return a2 / (PI * d * d);
 }
 

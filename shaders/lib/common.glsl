@@ -117,6 +117,14 @@ float luminance(vec3 c) { return dot(c, vec3(0.2126, 0.7152, 0.0722)); }
 float sqr(float x) { return x * x; }
 float saturate(float x) { return clamp(x, 0.0, 1.0); }
 
+// A history value as it is read back: NaN/Inf (written by an earlier frame) reads as 0, so one
+// bad frame does not stay in a volume, atlas or cache that blends its past forever.
+vec4 finite_or_zero(vec4 v) {
+    bvec4 bad = bvec4(isnan(v.x) || isinf(v.x), isnan(v.y) || isinf(v.y), isnan(v.z) || isinf(v.z),
+                      isnan(v.w) || isinf(v.w));
+    return mix(v, vec4(0.0), bad);
+}
+
 // Replace NaN/Inf by 0 and clamp to a finite range (every technique's final write goes through this).
 vec3 sanitize(vec3 c) {
     bvec3 bad = bvec3(isnan(c.x) || isinf(c.x), isnan(c.y) || isinf(c.y), isnan(c.z) || isinf(c.z));

@@ -61,20 +61,20 @@ uniform sampler2D u_probe_state;  // state texture (nearest)
 uniform float u_normal_bias;      // world units
 uniform float u_view_bias;        // world units
 
-vec4 probe_state(ivec3 s) { return texelFetch(u_probe_state, slot_tile(s), 0); }
+vec4 probe_state(ivec3 s) { return finite_or_zero(texelFetch(u_probe_state, slot_tile(s), 0)); }
 
 vec3 probe_position(ivec3 a, vec4 st) { return cell_position(a) + st.xyz; }
 
 vec3 sample_probe_irradiance(ivec3 s, vec3 dir) {
     vec2 atlas = vec2(textureSize(u_probe_irr, 0));
     vec2 uv = (vec2(slot_tile(s) * u_irr_size) + oct_tile_uv(dir, u_irr_size)) / atlas;
-    return textureLod(u_probe_irr, uv, 0.0).rgb;
+    return finite_or_zero(textureLod(u_probe_irr, uv, 0.0)).rgb;
 }
 
 vec2 sample_probe_distance(ivec3 s, vec3 dir) {
     vec2 atlas = vec2(textureSize(u_probe_dist, 0));
     vec2 uv = (vec2(slot_tile(s) * u_dist_size) + oct_tile_uv(dir, u_dist_size)) / atlas;
-    return textureLod(u_probe_dist, uv, 0.0).rg;
+    return finite_or_zero(textureLod(u_probe_dist, uv, 0.0)).rg;
 }
 
 // Irradiance E (W/m^2) arriving at surface point P with normal N, seen from direction V

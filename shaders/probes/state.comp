@@ -33,7 +33,7 @@ void main() {
     int pi = int(gl_GlobalInvocationID.x);
     if (pi >= probe_count()) return;
     ivec3 s = slot_from_index(pi);
-    vec4 st = (u_reset != 0 || slot_is_new(s)) ? vec4(0.0) : texelFetch(u_prev_state, slot_tile(s), 0);
+    vec4 st = (u_reset != 0 || slot_is_new(s)) ? vec4(0.0) : finite_or_zero(texelFetch(u_prev_state, slot_tile(s), 0));
 #if defined(PROBE_RELOCATE) || defined(PROBE_CLASSIFY)
     int nf = u_fixed_rays;
     int back = 0;

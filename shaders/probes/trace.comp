@@ -34,7 +34,7 @@ void main() {
     if (r >= u_rays || pi >= probe_count()) return;
     ivec3 s = slot_from_index(pi);
     ivec3 a = cell_of_slot(s, u_probe_cell0);
-    vec4 st = slot_is_new(s) ? vec4(0.0) : texelFetch(u_probe_state, slot_tile(s), 0);
+    vec4 st = slot_is_new(s) ? vec4(0.0) : finite_or_zero(texelFetch(u_probe_state, slot_tile(s), 0));
     if (st.w > 0.5 && r >= u_fixed_rays) {
         imageStore(o_rays, ivec2(r, pi), vec4(0.0, 0.0, 0.0, 1e27));
         return;

@@ -49,7 +49,7 @@ void main() {
     ivec2 t = texel - tile * tile_size;
     ivec3 s = slot_from_tile(tile);
     int pi = slot_index(s);
-    vec4 prev = texelFetch(u_prev, texel, 0);
+    vec4 prev = finite_or_zero(texelFetch(u_prev, texel, 0));
     bool reset = u_reset != 0 || slot_is_new(s) || texelFetch(u_state_prev, tile, 0).w < -0.5;
     if (reset) prev = vec4(0.0);
     vec4 st = texelFetch(u_state, tile, 0);

@@ -60,6 +60,7 @@ layout(binding = 2, rgba32f) uniform writeonly image2D o_2;
 layout(binding = 3, rgba32f) uniform writeonly image2D o_3;
 layout(binding = 4, rgba32f) uniform writeonly image2D o_4;
 
+const float MIN_ROUGHNESS = 0.1;  // the smoothest lobe the reservoirs evaluate (see load)
 uniform sampler2D u_gb_albedo;
 uniform sampler2D u_gb_position;
 uniform sampler2D u_gb_normal;
@@ -106,6 +107,11 @@ Shading load(ivec2 q) {
     Material m = scene_material(int(pos.w + 0.5));
     sh.s = gbuffer_surface(m, texelFetch(u_gb_albedo, q, 0), texelFetch(u_gb_normal, q, 0),
                            texelFetch(u_gb_geonormal, q, 0), m.emission.rgb);
+    // reuse evaluates this pixel's BSDF at other pixels' sample points: a near-mirror lobe
+    // (alpha 1e-4) is not evaluable there in float32 (its target function is noise and one
+    // reused sample can weigh 10x the image), so the reservoirs see it as roughness MIN_ROUGHNESS
+    sh.s.roughness = max(sh.s.roughness, MIN_ROUGHNESS);
+    sh.s.alpha = max(sh.s.alpha, MIN_ROUGHNESS * MIN_ROUGHNESS);
     sh.p = rt_offset_ray(sh.P, sh.Ng);
     return sh;
 }

@@ -139,7 +139,7 @@ vec4 vx_sample(vec3 p, float diam, vec3 d, out float width) {
                 float e = u_vx_box_ramp > 0.0 ? clamp((x - i - 0.5) / u_vx_box_ramp + 0.5, 0.0, 1.0)
                                               : step(0.5, x - i);
                 lk[k] = clamp((i + e + 0.5) / m, 0.5 / m, 1.0 - 0.5 / m);
-                t += wj * textureLod(u_vx_radiance, vec3(lk.xy, (slab + lk.z) / slabs), lj);
+                t += wj * finite_or_zero(textureLod(u_vx_radiance, vec3(lk.xy, (slab + lk.z) / slabs), lj));
             }
             r += w[k] * t.a * t;
             amax = max(amax, t.a * min(1.0, w[k] / VX_FACE_W_FULL));
