@@ -71,7 +71,7 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
-DEMOS = ("cornell", "glossy_spheres", "sunlit_room", "emissive_panel", "many_lights")
+DEMOS = ("cornell", "glossy_spheres", "sunlit_room", "emissive_panel", "many_lights", "courtyard_loft")
 REF_KINDS = ("full", "direct", "one_bounce", "ao")
 BASELINES = ("cycles", "cycles_denoised", "eevee")
 
@@ -100,8 +100,9 @@ def _script_argv() -> tuple[list[str], bool]:
 def parse_args(argv: list[str], scene_optional: bool):
     p = argparse.ArgumentParser(prog="gi_compare.py", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("scene", nargs="?" if scene_optional else None,
-                   help=".blend path or demo scene name (" + ", ".join(DEMOS) + ")")
+    p.add_argument("scenes", nargs="*" if scene_optional else "+", metavar="SCENE",
+                   help=".blend path, demo scene name (" + ", ".join(DEMOS) + ") or a folder of .blend "
+                        "files; several scenes write one folder each under --out and an index.html")
     p.add_argument("--techniques", default="")
     p.add_argument("--denoiser", default="AUTO", type=str.upper, choices=("AUTO", "NONE", "ATROUS", "SVGF"),
                    help="filter that ends each technique's frames, as the render panel's Denoiser: AUTO "
@@ -130,7 +131,23 @@ def parse_args(argv: list[str], scene_optional: bool):
     p.add_argument("--anim-ref-spp", type=int, default=256)
     p.add_argument("--anim-ref-denoise", choices=("on", "off"), default="on")
     p.add_argument("--anim-draws", type=int, default=1)
+    p.add_argument("--workers", type=int, default=None,
+                   help="run on a local Dask cluster of N worker processes (one thread each)")
+    p.add_argument("--scheduler", default=None, help="run on the Dask scheduler at ADDRESS (tcp://host:8786)")
+    p.add_argument("--retries", type=int, default=2,
+                   help="with Dask: how often a task that raises is run again (a worker that dies "
+                        "mid-task has its task rescheduled in any case)")
+    p.add_argument("--no-resume", action="store_true",
+                   help="with several scenes or Dask: run every task again, even those a previous run finished")
     a = p.parse_args(argv)
+    a.scene = a.scenes[0] if len(a.scenes) == 1 else None
+    a.distributed = a.workers is not None or a.scheduler is not None
+    if a.workers is not None and a.scheduler is not None:
+        p.error("--workers and --scheduler exclude each other")
+    if a.workers is not None and a.workers < 1:
+        p.error("--workers must be >= 1")
+    if a.animation and (a.distributed or len(a.scenes) > 1):
+        p.error("--animation compares one scene on this machine (no --workers/--scheduler)")
     if a.ref_spp < 1 or a.frames < 1 or a.samples < 1:
         p.error("--ref-spp, --frames and --samples must be >= 1")
     def spp_list(text, name):
@@ -213,6 +230,112 @@ def _load_scene(bpy, name_or_path: str | None, demo_scenes):
     if name_or_path in DEMOS or demo_scenes is not None:
         return demo_scenes.build_demo(name_or_path)
     raise SystemExit(f"gi_compare: {name_or_path!r} is neither a .blend nor a demo scene ({', '.join(DEMOS)})")
+
+
+def expand_scenes(items) -> list[dict]:
+    """The scenes of the command line as [{"label", "spec", "error"}]: a folder gives its .blend
+    files (sorted); ``label`` names the scene's output folder (the demo name or the file's stem,
+    made unique); ``error`` is set for a missing file or an unknown name (the sweep goes on)."""
+    found = []
+    for it in items:
+        if os.path.isdir(it):
+            blends = sorted(f for f in os.listdir(it) if f.lower().endswith(".blend"))
+            if not blends:
+                found.append((os.path.basename(os.path.normpath(it)), os.path.abspath(it),
+                              f"no .blend files in the folder {it}"))
+            found += [(os.path.splitext(f)[0], os.path.abspath(os.path.join(it, f)), None) for f in blends]
+        elif it.lower().endswith(".blend"):
+            err = None if os.path.isfile(it) else f"gi_compare: no such file {it}"
+            found.append((os.path.splitext(os.path.basename(it))[0], os.path.abspath(it), err))
+        else:
+            err = None if it in DEMOS else \
+                f"gi_compare: {it!r} is neither a .blend nor a demo scene ({', '.join(DEMOS)})"
+            found.append((it, it, err))
+    out, seen = [], {}
+    for label, spec, err in found:
+        label = "".join(c if c.isalnum() or c in "-_." else "_" for c in label) or "scene"
+        n = seen[label] = seen.get(label, 0) + 1
+        out.append({"label": label if n == 1 else f"{label}_{n}", "spec": spec, "error": err})
+    return out
+
+
+def write_index(opts, rows: list[dict], *, wall_s: float, workers: int | None = None, tasks_run=(),
+                tasks_skipped: int = 0, log=log) -> dict:
+    """``<out>/summary.json`` and ``<out>/index.html`` over the scenes of a sweep. ``rows``:
+    [{"label", "scene", "error", "report", "results", "summary" (the scene's results dict)}]."""
+    pkg = find_addon(opts.use_installed)
+    report = importlib.import_module(pkg.__name__ + ".compare.report")
+    out = os.path.abspath(opts.out)
+    scenes = []
+    for r in rows:
+        res = r.get("summary") or {}
+        primary = res.get("baselines_reference") or "full"
+        scenes.append({
+            "label": r["label"], "scene": r["scene"], "name": res.get("scene"), "error": r.get("error"),
+            "report": r.get("report"), "results": r.get("results"),
+            "resolution": res.get("resolution"), "reference": primary,
+            "reference_ms": (res.get("reference") or {}).get("time_ms"),
+            "reference_spp": (res.get("reference") or {}).get("spp"),
+            "rows": [{"technique": e["technique"], "quality": e["quality"], "denoiser": e.get("denoiser"),
+                      "relmse": e["relmse"], "flip": e["flip"], "time_ms": e["time_ms"],
+                      "speedup": (e.get("speedup") or {}).get("speedup")}
+                     for e in res.get("entries", []) if e["reference"] == primary]})
+    summary = _clean_json({
+        "date": datetime.datetime.now().isoformat(timespec="seconds"), "wall_s": wall_s,
+        "workers": workers, "mode": "dask" if workers else "serial",
+        "settings": {k: getattr(opts, k, None) for k in ("techniques", "quality", "res", "ref_spp", "frames",
+                                                           "samples", "reference", "seed")},
+        "scenes": scenes, "failed": [s["label"] for s in scenes if s["error"]],
+        "tasks_run": list(tasks_run), "tasks_skipped": tasks_skipped})
+    with open(os.path.join(out, "summary.json"), "w", encoding="utf-8") as f:
+        json.dump(summary, f, indent=1)
+    report.write_index(os.path.join(out, "index.html"), summary)
+    ok = len(scenes) - len(summary["failed"])
+    log(f"{ok} of {len(scenes)} scene(s) compared in {wall_s:.1f} s; wrote {os.path.join(out, 'index.html')}")
+    for s in scenes:
+        if s["error"]:
+            log(f"  {s['label']}: FAILED: {s['error']}")
+    return summary
+
+
+def run_scenes(opts, scenes: list[dict]) -> dict:
+    """Several scenes on this machine, one after another: ``<out>/<label>/`` per scene (a
+    scene's results are kept when a rerun finds its results.json with the same settings), then
+    the index."""
+    import copy
+    t0 = time.perf_counter()
+    rows = []
+    for sc in scenes:
+        row = {"label": sc["label"], "scene": sc["spec"], "error": sc["error"], "report": None, "results": None}
+        rows.append(row)
+        if row["error"]:
+            log(f"{sc['label']}: {row['error']}")
+            continue
+        o = copy.copy(opts)
+        o.scene, o.out = sc["spec"], os.path.join(opts.out, sc["label"])
+        done = os.path.join(o.out, "results.json")
+        key = os.path.join(o.out, "settings.json")
+        settings = json.dumps({k: getattr(opts, k, None) for k in _RESULT_OPTIONS}, sort_keys=True, default=str)
+        try:
+            if not opts.no_resume and os.path.exists(done) and os.path.exists(key) \
+                    and open(key, encoding="utf-8").read() == settings:
+                log(f"{sc['label']}: results.json already there with these settings; skipped")
+                with open(done, encoding="utf-8") as f:
+                    row["summary"] = json.load(f)
+            else:
+                row["summary"] = run(o)
+                with open(key, "w", encoding="utf-8") as f:
+                    f.write(settings)
+            row["report"] = os.path.join(sc["label"], "report.html")
+            row["results"] = os.path.join(sc["label"], "results.json")
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - one scene's failure is reported, not fatal
+            row["error"] = str(exc.code) if isinstance(exc, SystemExit) else f"{type(exc).__name__}: {exc}"
+            log(f"{sc['label']}: FAILED: {row['error']}")
+    return write_index(opts, rows, wall_s=time.perf_counter() - t0)
+
+
+_RESULT_OPTIONS = ("techniques", "denoiser", "quality", "res", "ref_spp", "frames", "samples", "curve",
+                   "baselines", "denoised_curve", "eevee_samples", "reference", "seed", "no_cache")
 
 
 def _resolution(scene, res):
@@ -642,7 +765,19 @@ def main():
     except ImportError:
         raise SystemExit("gi_compare: needs Blender (blender -b -P) or the bpy module (pip install bpy)")
     try:
-        run_animation(opts) if opts.animation else run(opts)
+        if opts.distributed:
+            sys.path.insert(0, HERE)
+            import _distributed  # Dask is imported only here
+
+            summary = _distributed.run(opts, expand_scenes(opts.scenes), log=log)
+            if summary["failed"] and len(summary["failed"]) == len(summary["scenes"]):
+                raise SystemExit(1)
+        elif len(opts.scenes) > 1 or (opts.scenes and os.path.isdir(opts.scenes[0])):
+            summary = run_scenes(opts, expand_scenes(opts.scenes))
+            if summary["failed"] and len(summary["failed"]) == len(summary["scenes"]):
+                raise SystemExit(1)
+        else:
+            run_animation(opts) if opts.animation else run(opts)
     except Exception as exc:  # GLUnavailableError: one clear line, not a traceback
         if type(exc).__name__ != "GLUnavailableError":
             raise
