@@ -45,6 +45,13 @@ ARGS
                         are their means); techniques default to SVGF,TAA and each technique's
                         default quality
 
+Several scenes (names, .blend files, folders of .blend files) write one folder each under
+DIR, plus index.html and summary.json; a rerun keeps what an earlier run finished:
+  --workers N           on a local Dask cluster of N worker processes (127.0.0.1, one thread each)
+  --scheduler ADDRESS   on a running Dask scheduler and its workers (see docs/COMPARISON.md)
+  --retries N           with Dask: runs of a task that raises (2); --no-resume: run everything again
+Without --workers or --scheduler nothing of Dask is imported.
+
 Timing: a technique's ``time_ms`` is its per-frame time x samples; its one-time setup
 (scene export, GPU upload, BVH build, shader compilation) is ``setup_ms``, measured apart.
 The baselines' wall times are split the same way: ``wall = setup + per_sample x spp``
