@@ -112,3 +112,30 @@ def test_selftest_catches_a_broken_page(run_dir, tmp_path, statement, failure):
     assert _console(err) == []
     outcome = _body_attrs(dom).get("data-selftest", "")
     assert outcome.startswith("fail") and failure in outcome, outcome
+
+
+def test_index_in_browser(run_dir, tmp_path):
+    """The index of a sweep over scenes (report.write_index, as gi_compare writes it for several
+    scenes): the run above as one scene and a failed scene; it loads without console messages,
+    links the scene's report and shows the failure."""
+    import shutil
+    from gi_preview.compare import report
+    site = tmp_path / "sweep"
+    shutil.copytree(run_dir, site / "cornell")
+    res = json.loads((run_dir / "results.json").read_text())
+    rows = [{"technique": e["technique"], "quality": e["quality"], "denoiser": e.get("denoiser"),
+             "relmse": e["relmse"], "flip": e["flip"], "time_ms": e["time_ms"]}
+            for e in res["entries"] if e["reference"] == "full"]
+    summary = {"wall_s": 1.0, "workers": 2, "failed": ["gone"], "tasks_run": [], "tasks_skipped": 0,
+               "scenes": [{"label": "cornell", "report": "cornell/report.html", "error": None,
+                           "resolution": res["resolution"], "reference_ms": res["reference"]["time_ms"],
+                           "reference_spp": 16, "rows": rows},
+                          {"label": "gone", "report": None, "error": "gi_compare: no such file gone.blend",
+                           "rows": []}]}
+    report.write_index(str(site / "index.html"), summary)
+    dom, err = _browse(site / "index.html", tmp_path, fragment="")
+    assert _console(err) == []
+    links = re.findall(r'<a href="([^"]+)"', dom)
+    assert links == ["cornell/report.html"] and (site / links[0]).exists()
+    assert "failed: gi_compare: no such file gone.blend" in dom
+    assert dom.count("<circle") >= len(rows)  # the chart across scenes: a dot per technique

@@ -45,6 +45,13 @@ ARGS
                         are their means); techniques default to SVGF,TAA and each technique's
                         default quality
 
+Several scenes (names, .blend files, folders of .blend files) write one folder each under
+DIR, plus index.html and summary.json; a rerun keeps what an earlier run finished:
+  --workers N           on a local Dask cluster of N worker processes (127.0.0.1, one thread each)
+  --scheduler ADDRESS   on a running Dask scheduler and its workers (see docs/COMPARISON.md)
+  --retries N           with Dask: runs of a task that raises (2); --no-resume: run everything again
+Without --workers or --scheduler nothing of Dask is imported.
+
 Timing: a technique's ``time_ms`` is its per-frame time x samples; its one-time setup
 (scene export, GPU upload, BVH build, shader compilation) is ``setup_ms``, measured apart.
 The baselines' wall times are split the same way: ``wall = setup + per_sample x spp``
@@ -71,7 +78,7 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
-DEMOS = ("cornell", "glossy_spheres", "sunlit_room", "emissive_panel", "many_lights")
+DEMOS = ("cornell", "glossy_spheres", "sunlit_room", "emissive_panel", "many_lights", "courtyard_loft")
 REF_KINDS = ("full", "direct", "one_bounce", "ao")
 BASELINES = ("cycles", "cycles_denoised", "eevee")
 
@@ -100,8 +107,9 @@ def _script_argv() -> tuple[list[str], bool]:
 def parse_args(argv: list[str], scene_optional: bool):
     p = argparse.ArgumentParser(prog="gi_compare.py", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("scene", nargs="?" if scene_optional else None,
-                   help=".blend path or demo scene name (" + ", ".join(DEMOS) + ")")
+    p.add_argument("scenes", nargs="*" if scene_optional else "+", metavar="SCENE",
+                   help=".blend path, demo scene name (" + ", ".join(DEMOS) + ") or a folder of .blend "
+                        "files; several scenes write one folder each under --out and an index.html")
     p.add_argument("--techniques", default="")
     p.add_argument("--denoiser", default="AUTO", type=str.upper, choices=("AUTO", "NONE", "ATROUS", "SVGF"),
                    help="filter that ends each technique's frames, as the render panel's Denoiser: AUTO "
@@ -130,7 +138,23 @@ def parse_args(argv: list[str], scene_optional: bool):
     p.add_argument("--anim-ref-spp", type=int, default=256)
     p.add_argument("--anim-ref-denoise", choices=("on", "off"), default="on")
     p.add_argument("--anim-draws", type=int, default=1)
+    p.add_argument("--workers", type=int, default=None,
+                   help="run on a local Dask cluster of N worker processes (one thread each)")
+    p.add_argument("--scheduler", default=None, help="run on the Dask scheduler at ADDRESS (tcp://host:8786)")
+    p.add_argument("--retries", type=int, default=2,
+                   help="with Dask: how often a task that raises is run again (a worker that dies "
+                        "mid-task has its task rescheduled in any case)")
+    p.add_argument("--no-resume", action="store_true",
+                   help="with several scenes or Dask: run every task again, even those a previous run finished")
     a = p.parse_args(argv)
+    a.scene = a.scenes[0] if len(a.scenes) == 1 else None
+    a.distributed = a.workers is not None or a.scheduler is not None
+    if a.workers is not None and a.scheduler is not None:
+        p.error("--workers and --scheduler exclude each other")
+    if a.workers is not None and a.workers < 1:
+        p.error("--workers must be >= 1")
+    if a.animation and (a.distributed or len(a.scenes) > 1):
+        p.error("--animation compares one scene on this machine (no --workers/--scheduler)")
     if a.ref_spp < 1 or a.frames < 1 or a.samples < 1:
         p.error("--ref-spp, --frames and --samples must be >= 1")
     def spp_list(text, name):
@@ -215,6 +239,112 @@ def _load_scene(bpy, name_or_path: str | None, demo_scenes):
     raise SystemExit(f"gi_compare: {name_or_path!r} is neither a .blend nor a demo scene ({', '.join(DEMOS)})")
 
 
+def expand_scenes(items) -> list[dict]:
+    """The scenes of the command line as [{"label", "spec", "error"}]: a folder gives its .blend
+    files (sorted); ``label`` names the scene's output folder (the demo name or the file's stem,
+    made unique); ``error`` is set for a missing file or an unknown name (the sweep goes on)."""
+    found = []
+    for it in items:
+        if os.path.isdir(it):
+            blends = sorted(f for f in os.listdir(it) if f.lower().endswith(".blend"))
+            if not blends:
+                found.append((os.path.basename(os.path.normpath(it)), os.path.abspath(it),
+                              f"no .blend files in the folder {it}"))
+            found += [(os.path.splitext(f)[0], os.path.abspath(os.path.join(it, f)), None) for f in blends]
+        elif it.lower().endswith(".blend"):
+            err = None if os.path.isfile(it) else f"gi_compare: no such file {it}"
+            found.append((os.path.splitext(os.path.basename(it))[0], os.path.abspath(it), err))
+        else:
+            err = None if it in DEMOS else \
+                f"gi_compare: {it!r} is neither a .blend nor a demo scene ({', '.join(DEMOS)})"
+            found.append((it, it, err))
+    out, seen = [], {}
+    for label, spec, err in found:
+        label = "".join(c if c.isalnum() or c in "-_." else "_" for c in label) or "scene"
+        n = seen[label] = seen.get(label, 0) + 1
+        out.append({"label": label if n == 1 else f"{label}_{n}", "spec": spec, "error": err})
+    return out
+
+
+def write_index(opts, rows: list[dict], *, wall_s: float, workers: int | None = None, tasks_run=(),
+                tasks_skipped: int = 0, log=log) -> dict:
+    """``<out>/summary.json`` and ``<out>/index.html`` over the scenes of a sweep. ``rows``:
+    [{"label", "scene", "error", "report", "results", "summary" (the scene's results dict)}]."""
+    pkg = find_addon(opts.use_installed)
+    report = importlib.import_module(pkg.__name__ + ".compare.report")
+    out = os.path.abspath(opts.out)
+    scenes = []
+    for r in rows:
+        res = r.get("summary") or {}
+        primary = res.get("baselines_reference") or "full"
+        scenes.append({
+            "label": r["label"], "scene": r["scene"], "name": res.get("scene"), "error": r.get("error"),
+            "report": r.get("report"), "results": r.get("results"),
+            "resolution": res.get("resolution"), "reference": primary,
+            "reference_ms": (res.get("reference") or {}).get("time_ms"),
+            "reference_spp": (res.get("reference") or {}).get("spp"),
+            "rows": [{"technique": e["technique"], "quality": e["quality"], "denoiser": e.get("denoiser"),
+                      "relmse": e["relmse"], "flip": e["flip"], "time_ms": e["time_ms"],
+                      "speedup": (e.get("speedup") or {}).get("speedup")}
+                     for e in res.get("entries", []) if e["reference"] == primary]})
+    summary = _clean_json({
+        "date": datetime.datetime.now().isoformat(timespec="seconds"), "wall_s": wall_s,
+        "workers": workers, "mode": "dask" if workers else "serial",
+        "settings": {k: getattr(opts, k, None) for k in ("techniques", "quality", "res", "ref_spp", "frames",
+                                                           "samples", "reference", "seed")},
+        "scenes": scenes, "failed": [s["label"] for s in scenes if s["error"]],
+        "tasks_run": list(tasks_run), "tasks_skipped": tasks_skipped})
+    with open(os.path.join(out, "summary.json"), "w", encoding="utf-8") as f:
+        json.dump(summary, f, indent=1)
+    report.write_index(os.path.join(out, "index.html"), summary)
+    ok = len(scenes) - len(summary["failed"])
+    log(f"{ok} of {len(scenes)} scene(s) compared in {wall_s:.1f} s; wrote {os.path.join(out, 'index.html')}")
+    for s in scenes:
+        if s["error"]:
+            log(f"  {s['label']}: FAILED: {s['error']}")
+    return summary
+
+
+def run_scenes(opts, scenes: list[dict]) -> dict:
+    """Several scenes on this machine, one after another: ``<out>/<label>/`` per scene (a
+    scene's results are kept when a rerun finds its results.json with the same settings), then
+    the index."""
+    import copy
+    t0 = time.perf_counter()
+    rows = []
+    for sc in scenes:
+        row = {"label": sc["label"], "scene": sc["spec"], "error": sc["error"], "report": None, "results": None}
+        rows.append(row)
+        if row["error"]:
+            log(f"{sc['label']}: {row['error']}")
+            continue
+        o = copy.copy(opts)
+        o.scene, o.out = sc["spec"], os.path.join(opts.out, sc["label"])
+        done = os.path.join(o.out, "results.json")
+        key = os.path.join(o.out, "settings.json")
+        settings = json.dumps({k: getattr(opts, k, None) for k in _RESULT_OPTIONS}, sort_keys=True, default=str)
+        try:
+            if not opts.no_resume and os.path.exists(done) and os.path.exists(key) \
+                    and open(key, encoding="utf-8").read() == settings:
+                log(f"{sc['label']}: results.json already there with these settings; skipped")
+                with open(done, encoding="utf-8") as f:
+                    row["summary"] = json.load(f)
+            else:
+                row["summary"] = run(o)
+                with open(key, "w", encoding="utf-8") as f:
+                    f.write(settings)
+            row["report"] = os.path.join(sc["label"], "report.html")
+            row["results"] = os.path.join(sc["label"], "results.json")
+        except (Exception, SystemExit) as exc:  # noqa: BLE001 - one scene's failure is reported, not fatal
+            row["error"] = str(exc.code) if isinstance(exc, SystemExit) else f"{type(exc).__name__}: {exc}"
+            log(f"{sc['label']}: FAILED: {row['error']}")
+    return write_index(opts, rows, wall_s=time.perf_counter() - t0)
+
+
+_RESULT_OPTIONS = ("techniques", "denoiser", "quality", "res", "ref_spp", "frames", "samples", "curve",
+                   "baselines", "denoised_curve", "eevee_samples", "reference", "seed", "no_cache")
+
+
 def _resolution(scene, res):
     r = scene.render
     w = int(r.resolution_x * r.resolution_percentage / 100)
@@ -226,145 +356,170 @@ def _resolution(scene, res):
 
 
 # ---------------------------------------------------------------- the run
-def run(opts, *, pkg=None, session=None, scene=None) -> dict:
-    import bpy
-    import numpy as np
+class _Run:
+    """What every step of a comparison needs: the package's modules, the plan (technique,
+    quality) and the reference kinds; after :meth:`load_scene` also the scene, its export and
+    its resolution. The serial run uses one; a distributed run makes one per task (the steps
+    below are the tasks)."""
 
-    pkg = pkg or find_addon(opts.use_installed)
-    pn = pkg.__name__
-    reference = importlib.import_module(pn + ".blender.reference")
-    export = importlib.import_module(pn + ".blender.export")
-    metrics = importlib.import_module(pn + ".compare.metrics")
-    sweep = importlib.import_module(pn + ".compare.sweep")
-    report = importlib.import_module(pn + ".compare.report")
-    imageio = importlib.import_module(pn + ".compare.imageio")
-    reference.ensure_oiio()
-    if session is None:
-        session = importlib.import_module(pn + ".render.session")
-    techniques = importlib.import_module(pn + ".render.techniques")
-    if scene is None:
-        demo = None
-        if opts.scene and not opts.scene.lower().endswith(".blend"):
-            demo = importlib.import_module(pn + ".blender.demo_scenes")
-        scene = _load_scene(bpy, opts.scene, demo)
-    out = os.path.abspath(opts.out)
-    os.makedirs(out, exist_ok=True)
-    w, h = _resolution(scene, opts.res)
-    log(f"scene '{scene.name}' at {w}x{h}, output {out}")
-    # OpenGL 4.3 first: without it nothing of ours can render, so fail before any Cycles work
-    gl = importlib.import_module(pn + ".render.gl")
-    log(f"OpenGL: {gl.get_gl().info.get('GL_RENDERER')} ({gl.get_gl().info.get('GL_VERSION')})")
+    def __init__(self, opts, *, pkg=None, session=None):
+        self.opts = opts
+        self.pkg = pkg or find_addon(opts.use_installed)
+        pn = self.pkg.__name__
+        for name, path in (("reference", "blender.reference"), ("export", "blender.export"),
+                           ("metrics", "compare.metrics"), ("sweep", "compare.sweep"),
+                           ("report", "compare.report"), ("imageio", "compare.imageio"),
+                           ("techniques", "render.techniques")):
+            setattr(self, name, importlib.import_module(f"{pn}.{path}"))
+        self.session = session or importlib.import_module(pn + ".render.session")
+        self.out = os.path.abspath(opts.out)
+        self.scene = None
+        self.curves, self.baselines = {}, {}
 
-    # ---- techniques and quality levels
-    infos = {t.id: t for t in session.available_techniques()}
-    wanted = [t.strip() for t in opts.techniques.split(",") if t.strip()] or list(infos)
-    unknown = [t for t in wanted if t not in infos]
-    if unknown:
-        raise SystemExit(f"gi_compare: unknown technique(s) {', '.join(unknown)}; available: {', '.join(infos)}")
-    plan = []
-    for t in wanted:
-        levels = list(infos[t].quality_levels)
-        if opts.quality != "all":
-            req = [int(q) for q in opts.quality.split(",") if q.strip()]
-            missing = [q for q in req if q not in levels]
-            if missing:
-                log(f"{t}: quality level(s) {missing} not in its ladder {levels}; skipped")
-            levels = [q for q in req if q in levels]
-        plan += [(t, q) for q in levels]
-    if not plan:
-        raise SystemExit("gi_compare: nothing to render (check --techniques/--quality)")
+    # ---- techniques, quality levels and reference kinds (no scene needed)
+    def make_plan(self, quiet: bool = False):
+        opts = self.opts
+        self.infos = infos = {t.id: t for t in self.session.available_techniques()}
+        wanted = [t.strip() for t in opts.techniques.split(",") if t.strip()] or list(infos)
+        unknown = [t for t in wanted if t not in infos]
+        if unknown:
+            raise SystemExit(f"gi_compare: unknown technique(s) {', '.join(unknown)}; available: {', '.join(infos)}")
+        plan = []
+        for t in wanted:
+            levels = list(infos[t].quality_levels)
+            if opts.quality != "all":
+                req = [int(q) for q in opts.quality.split(",") if q.strip()]
+                missing = [q for q in req if q not in levels]
+                if missing and not quiet:
+                    log(f"{t}: quality level(s) {missing} not in its ladder {levels}; skipped")
+                levels = [q for q in req if q in levels]
+            plan += [(t, q) for q in levels]
+        if not plan:
+            raise SystemExit("gi_compare: nothing to render (check --techniques/--quality)")
+        self.plan = plan
+        self.kinds = []
+        for t, _ in plan:
+            for k in self.kinds_for(t):
+                if k not in self.kinds:
+                    self.kinds.append(k)
+        self.primary = "full" if "full" in self.kinds else self.kinds[0]
+        return plan
 
-    # ---- export once (the fingerprint keys the reference cache); its time is setup
-    t0 = time.perf_counter()
-    dg = reference.evaluated_depsgraph(scene)
-    sd = export.export_scene(dg, width=w, height=h)
-    export_ms = (time.perf_counter() - t0) * 1e3
-    fp = sd.fingerprint()
-    log(f"exported the scene in {export_ms:.0f} ms")
-    support = importlib.import_module(pn + ".render.support").scene_support(sd)
-    log(support["summary"])
-    for kind in ("materials", "lights"):
-        for name, e in support[kind].items():
-            if e["status"] != "exact":
-                log(f"  {kind[:-1]} '{name}': {e['status']}: {e['detail']}")
-    if support["world"]["status"] != "exact" or support["world"]["detail"] != "uniform colour":
-        log(f"  world: {support['world']['status']}: {support['world']['detail']}")
-
-    # ---- which references
-    def kinds_for(tech):
-        if opts.reference != "auto":
-            return [opts.reference]
-        k = getattr(infos[tech], "reference", "full") or "full"
+    def kinds_for(self, tech):
+        if self.opts.reference != "auto":
+            return [self.opts.reference]
+        k = getattr(self.infos[tech], "reference", "full") or "full"
         return [k] if k == "full" else [k, "full"]
-    kinds = []
-    for t, _ in plan:
-        for k in kinds_for(t):
-            if k not in kinds:
-                kinds.append(k)
-    primary = "full" if "full" in kinds else kinds[0]
 
-    def strip(points):
-        return [{k: v for k, v in c.items() if k != "image"} for c in points]
+    # ---- the scene, OpenGL and the export
+    def load_scene(self, scene=None, quiet: bool = False):
+        import bpy
 
-    def progress(name):
+        opts = self.opts
+        self.reference.ensure_oiio()
+        if scene is None:
+            demo = None
+            if opts.scene and not opts.scene.lower().endswith(".blend"):
+                demo = importlib.import_module(self.pkg.__name__ + ".blender.demo_scenes")
+            scene = _load_scene(bpy, opts.scene, demo)
+        self.scene = scene
+        os.makedirs(self.out, exist_ok=True)
+        self.w, self.h = w, h = _resolution(scene, opts.res)
+        say = (lambda m: None) if quiet else log
+        say(f"scene '{scene.name}' at {w}x{h}, output {self.out}")
+        # OpenGL 4.3 first: without it nothing of ours can render, so fail before any Cycles work
+        self.gl = importlib.import_module(self.pkg.__name__ + ".render.gl")
+        self.gl_info = dict(self.gl.get_gl().info)
+        say(f"OpenGL: {self.gl_info.get('GL_RENDERER')} ({self.gl_info.get('GL_VERSION')})")
+        self.make_plan(quiet=quiet)
+        # export once (the fingerprint keys the reference cache); its time is setup
+        t0 = time.perf_counter()
+        dg = self.reference.evaluated_depsgraph(scene)
+        self.sd = self.export.export_scene(dg, width=w, height=h)
+        self.export_ms = (time.perf_counter() - t0) * 1e3
+        self.fp = self.sd.fingerprint()
+        say(f"exported the scene in {self.export_ms:.0f} ms")
+        support = importlib.import_module(self.pkg.__name__ + ".render.support").scene_support(self.sd)
+        self.support = support
+        say(support["summary"])
+        for kind in ("materials", "lights"):
+            for name, e in support[kind].items():
+                if e["status"] != "exact":
+                    say(f"  {kind[:-1]} '{name}': {e['status']}: {e['detail']}")
+        if support["world"]["status"] != "exact" or support["world"]["detail"] != "uniform colour":
+            say(f"  world: {support['world']['status']}: {support['world']['detail']}")
+        return scene
+
+    def scene_meta(self) -> dict:
+        """What the results need of the scene, without the scene (plain data)."""
+        import bpy
+        return {"scene": self.scene.name, "w": self.w, "h": self.h, "fp": self.fp, "export_ms": self.export_ms,
+                "support": self.support, "gl_info": self.gl_info, "blender": bpy.app.version_string}
+
+    # ---- Cycles: a reference, its curve, the other baselines
+    def get_reference(self, k):
+        opts = self.opts
+        log(f"Cycles reference '{k}' at {opts.ref_spp} spp ...")
+        r = self.reference.get_reference(self.scene, k, opts.ref_spp, seed=opts.seed, width=self.w, height=self.h,
+                                         fingerprint=self.fp, cache_dir=opts.cache, use_cache=not opts.no_cache)
+        log(f"  {'from cache' if r.cached else 'rendered'}: {r.time_ms:.0f} ms")
+        self.imageio.write_exr(os.path.join(self.out, f"reference_{k}.exr"), r.image)
+        self.imageio.write_png(os.path.join(self.out, f"reference_{k}.png"), self.metrics.view_standard(r.image))
+        return r
+
+    def _progress(self, name):
         return lambda i, n, spp, ms: log(f"  {name} {spp:>5} spp: {ms:8.0f} ms wall ({i}/{n})")
 
-    refs, curves, curve_info = {}, {}, {}
-    baselines, baseline_info, baseline_images = {}, {}, {}
-    cache_dir = opts.cache
-    for k in kinds:
-        log(f"Cycles reference '{k}' at {opts.ref_spp} spp ...")
-        r = reference.get_reference(scene, k, opts.ref_spp, seed=opts.seed, width=w, height=h,
-                                    fingerprint=fp, cache_dir=cache_dir, use_cache=not opts.no_cache)
-        refs[k] = r
-        log(f"  {'from cache' if r.cached else 'rendered'}: {r.time_ms:.0f} ms")
-        imageio.write_exr(os.path.join(out, f"reference_{k}.exr"), r.image)
-        imageio.write_png(os.path.join(out, f"reference_{k}.png"), metrics.view_standard(r.image))
-        log(f"Cycles curve '{k}' at {opts.curve} spp ...")
-        bc = reference.baseline_curve(scene, "cycles", opts.curve, r, seed=opts.seed + 1,
-                                      progress=progress("Cycles"))
+    def cycles_curve(self, k, ref) -> dict:
+        log(f"Cycles curve '{k}' at {self.opts.curve} spp ...")
+        bc = self.reference.baseline_curve(self.scene, "cycles", self.opts.curve, ref, seed=self.opts.seed + 1,
+                                           progress=self._progress("Cycles"))
         log(f"  setup {bc['setup_ms']:.0f} ms + {bc['per_sample_ms']:.2f} ms/spp")
-        curves[k] = strip(bc["points"])
-        curve_info[k] = {key: v for key, v in bc.items() if key != "points"}
-        if k == primary:
-            baselines["cycles"] = curves[k]
-            baseline_info["cycles"] = curve_info[k]
-            baseline_images["cycles"] = bc["points"][-1]["image"]
-    # ---- the other baselines, against the primary reference
-    if primary == "full":
-        cyc_setup = baseline_info["cycles"]["setup_ms"]
-        for name in opts.baselines[1:]:
-            spps = opts.denoised_curve if name == "cycles_denoised" else opts.eevee_samples
-            log(f"{reference.BASELINE_LABELS[name]} at {spps} samples (untimed warm-up first) ...")
-            bc = reference.baseline_curve(scene, name, spps, refs[primary], seed=opts.seed + 1,
-                                          setup_ms=cyc_setup if name == "cycles_denoised" else None,
-                                          progress=progress(name))
-            extra = bc["first_render_extra_ms"]
-            log(f"  setup {bc['setup_ms']:.0f} ms + {bc['per_sample_ms']:.2f} ms/sample"
-                + (f"; first render +{extra:.0f} ms (warm-up)" if extra is not None else ""))
-            baselines[name] = strip(bc["points"])
-            baseline_info[name] = {key: v for key, v in bc.items() if key != "points"}
-            baseline_images[name] = bc["points"][-1]["image"]
-    elif len(opts.baselines) > 1:
-        log(f"baselines {', '.join(opts.baselines[1:])} need the 'full' reference (--reference "
-            f"{opts.reference}): not measured")
+        return bc
 
-    def baseline_curves_for(k):
+    def baseline(self, name, ref, cyc_setup) -> dict:
+        spps = self.opts.denoised_curve if name == "cycles_denoised" else self.opts.eevee_samples
+        log(f"{self.reference.BASELINE_LABELS[name]} at {spps} samples (untimed warm-up first) ...")
+        bc = self.reference.baseline_curve(self.scene, name, spps, ref, seed=self.opts.seed + 1,
+                                           setup_ms=cyc_setup if name == "cycles_denoised" else None,
+                                           progress=self._progress(name))
+        extra = bc["first_render_extra_ms"]
+        log(f"  setup {bc['setup_ms']:.0f} ms + {bc['per_sample_ms']:.2f} ms/sample"
+            + (f"; first render +{extra:.0f} ms (warm-up)" if extra is not None else ""))
+        return bc
+
+    def baseline_names(self) -> list[str]:
+        """The baselines besides Cycles that this run measures (they need the 'full' reference)."""
+        return list(self.opts.baselines[1:]) if self.primary == "full" else []
+
+    def set_curves(self, curves: dict, baselines: dict):
+        """``curves``: {kind: Cycles curve}; ``baselines``: {name: curve} (all from baseline_curve)."""
+        self.curves, self.baselines = curves, baselines
+
+    def baseline_curves_for(self, k):
         """{baseline name: [(spp, time_ms, relmse)]} for entries measured against kind k."""
-        if k != primary:
-            return {"cycles": [(c["spp"], c["time_ms"], c["relmse"]) for c in curves[k]]}
-        return {b: [(c["spp"], c["time_ms"], c["relmse"]) for c in pts] for b, pts in baselines.items()}
+        if k != self.primary:
+            return {"cycles": [(c["spp"], c["time_ms"], c["relmse"]) for c in self.curves[k]["points"]]}
+        return {b: [(c["spp"], c["time_ms"], c["relmse"]) for c in bc["points"]] for b, bc in self.baselines.items()}
 
-    # ---- techniques
-    gl_call = gl.get_gl().call
-    entries, images = [], {}
-    for i, (tech, q) in enumerate(plan):
-        denoiser = techniques.resolve_denoiser(tech, opts.denoiser)
-        log(f"[{i + 1}/{len(plan)}] {tech} q{q}{'' if denoiser == 'NONE' else ' + ' + denoiser}: "
+    def speedups(self, e) -> dict:
+        return {b: self.sweep.equal_error_speedup(e["relmse"], e["time_ms"], cur,
+                                                  name=self.reference.BASELINE_LABELS[b])
+                for b, cur in self.baseline_curves_for(e["reference"]).items()}
+
+    # ---- one technique at one quality level: the rows (one per reference kind) and report images
+    def render_row(self, tech, q, refs, i=0, n=1):
+        import numpy as np
+
+        opts, session, metrics, imageio = self.opts, self.session, self.metrics, self.imageio
+        out, sd = self.out, self.sd
+        denoiser = self.techniques.resolve_denoiser(tech, opts.denoiser)
+        log(f"[{i + 1}/{n}] {tech} q{q}{'' if denoiser == 'NONE' else ' + ' + denoiser}: "
             f"{opts.frames} render(s) of {opts.samples} sample(s) ...")
         # a fresh GPU session per row, so every row pays (and reports) its own one-time setup:
         # GPU upload, BVH build, shader compilation; then one untimed warm-up render and the
         # timed ones (time_ms never includes setup)
+        gl_call = self.gl.get_gl().call
         gl_call(session.release_all)
         t0 = time.perf_counter()
         warm = session.render(sd, technique=tech, quality=q, samples=opts.samples, denoiser=denoiser)
@@ -383,7 +538,7 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
         else:  # renderer without its own setup timer: the first render's excess over a timed one
             renderer_setup = max(0.0, warm_ms - total_ms)
             setup_source = "first render's wall time minus a later render's"
-        setup_ms = export_ms + float(renderer_setup)
+        setup_ms = self.export_ms + float(renderer_setup)
         img = np.asarray(res.image, np.float32)
         base = f"{tech}_q{q}"
         imageio.write_exr(os.path.join(out, base + ".exr"), img)
@@ -400,19 +555,17 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
         if "GI_AO" in aovs and "ao" in refs:
             test_aovs["ao"] = aovs["GI_AO"]
             ref_aovs["ao"] = refs["ao"].image[..., :3]
-        for k in kinds_for(tech):
+        entries, images = [], {}
+        for k in self.kinds_for(tech):
             ref = refs[k]
             m = metrics.compare(img, ref.image, test_aovs=test_aovs, ref_aovs=ref_aovs)
             heat, legend = metrics.heatmap(img, ref.image)
             epath = os.path.join(out, f"{base}_vs_{k}_error.png")
             imageio.write_png(epath, heat)
-            sps = {b: sweep.equal_error_speedup(m["relmse"], time_ms, cur,
-                                                name=reference.BASELINE_LABELS[b])
-                   for b, cur in baseline_curves_for(k).items()}
             e = {"technique": tech, "quality": q, "denoiser": denoiser, "reference": k, "time_ms": time_ms,
                  "frame_ms": frame_ms, "total_ms": total_ms, "samples": int(getattr(res, "samples", 1)),
                  "setup_ms": setup_ms,
-                 "setup": {"export_ms": export_ms, "renderer_ms": float(renderer_setup),
+                 "setup": {"export_ms": self.export_ms, "renderer_ms": float(renderer_setup),
                            "first_render_ms": warm_ms, "source": setup_source},
                  "relmse": m["relmse"], "flip": m["flip"], "flip_ldr": m["flip_ldr"], "ssim": m["ssim"],
                  "psnr": m["psnr"], "nonfinite_pixels": m["nonfinite_pixels"],
@@ -422,81 +575,133 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
                                     for s in (getattr(res, "skipped_passes", []) or [])],
                  "effect_errors": m.get("effects", {}),
                  "warnings": list(getattr(res, "warnings", []) or []),
-                 "speedup": sps["cycles"],
-                 "speedups": sps,
+                 "speedup": None,
+                 "speedups": None,
                  "files": {"exr": base + ".exr", "png": base + ".png", "error_png": os.path.basename(epath)}}
             entries.append(e)
-            images[report.entry_id(tech, q, k)] = {"ours": ours_png,
-                                                   "cycles": imageio.png_bytes(metrics.view_standard(ref.image)),
-                                                   "error": imageio.png_bytes(heat)}
-            spt = "  ".join(f"{b} {sweep.speedup_text(v, plain=True)}" for b, v in sps.items())
-            log(f"  vs {k}: {time_ms:.2f} ms (+ setup {setup_ms:.0f} ms)  relMSE {m['relmse']:.4g}  "
-                f"FLIP {m['flip']:.4g}  SSIM {m['ssim']:.4f}  speed-up: {spt}")
-    gl_call(session.release_all)
+            images[self.report.entry_id(tech, q, k)] = {
+                "ours": ours_png, "cycles": imageio.png_bytes(metrics.view_standard(ref.image)),
+                "error": imageio.png_bytes(heat)}
+            line = (f"  vs {k}: {time_ms:.2f} ms (+ setup {setup_ms:.0f} ms)  relMSE {m['relmse']:.4g}  "
+                    f"FLIP {m['flip']:.4g}  SSIM {m['ssim']:.4f}")
+            if self.baselines:  # the curves are known: the speed-ups now
+                sps = e["speedups"] = self.speedups(e)
+                e["speedup"] = sps["cycles"]
+                line += "  speed-up: " + "  ".join(f"{b} {self.sweep.speedup_text(v, plain=True)}"
+                                                   for b, v in sps.items())
+            log(line)
+        return entries, images
 
-    # ---- chart(s): the primary one carries every baseline
-    charts = {}
-    for k in kinds:
-        pts = [{"technique": e["technique"], "quality": e["quality"], "time_ms": e["time_ms"],
-                "error": e["relmse"]} for e in entries if e["reference"] == k]
-        base = os.path.join(out, "chart" if k == primary else f"chart_{k}")
-        labels = {"cycles": "Cycles (spp)", "cycles_denoised": "Cycles + OIDN (spp)",
-                  "eevee": "EEVEE ray tracing (samples)"}
-        cur = {labels[b]: c for b, c in baseline_curves_for(k).items()}
-        c = sweep.write_chart(pts, cur, base, metric="relMSE",
-                              title=f"{scene.name}: cost vs accuracy against Cycles '{k}' ({opts.ref_spp} spp)")
-        charts[k] = c
-        if c["png"] is None and k == primary:
-            log("matplotlib is not importable: chart written as SVG only")
+    # ---- results.json, the charts and report.html
+    def finish(self, meta: dict, refs: dict, entries: list, images: dict) -> dict:
+        """``meta``: :meth:`scene_meta`; ``refs``: {kind: Reference}; ``entries``/``images``:
+        the rows and images of :meth:`render_row`, in plan order. Curves from :meth:`set_curves`."""
+        import numpy as np
 
-    import bpy as _b
-    speedups = [{"technique": e["technique"], "quality": e["quality"], "reference": e["reference"],
-                 "baseline": b, **v} for e in entries for b, v in e["speedups"].items()]
-    results = {
-        "scene": scene.name, "resolution": [w, h], "fingerprint": fp,
-        "run": {"date": datetime.datetime.now().isoformat(timespec="seconds"),
-                "blender": _b.app.version_string, "frames": opts.frames, "samples": opts.samples,
-                "ref_spp": opts.ref_spp, "reference_mode": opts.reference, "resolution": f"{w}x{h}",
-                "device": "GI Preview on {} ({}); Cycles on the CPU; EEVEE on Blender's own OpenGL context".format(
-                    gl.get_gl().info.get("GL_RENDERER"), gl.get_gl().info.get("GL_VERSION")),
-                "gl_renderer": gl.get_gl().info.get("GL_RENDERER"), "gl_version": gl.get_gl().info.get("GL_VERSION"),
-                "baselines": ",".join(baselines)},
-        "reference": {**refs[primary].info()},
-        "references": {k: r.info() for k, r in refs.items()},
-        "reference_settings": getattr(reference, "FAIR_SETTINGS_SUMMARY", ""),
-        "export_ms": export_ms,
-        "scene_support": support,
-        "baselines": baselines,
-        "baselines_reference": primary,
-        "baselines_setup": baseline_info,
-        "cycles_curve": curves[primary],
-        "cycles_curves": curves,
-        "cycles_curves_setup": curve_info,
-        "entries": entries,
-        "results": entries,
-        "speedup": [{"technique": e["technique"], "quality": e["quality"], "reference": e["reference"],
-                     **e["speedup"]} for e in entries],
-        "speedups": speedups,
-        "charts": {k: {"svg": os.path.basename(c["svg"]), "png": c["png"] and os.path.basename(c["png"])}
-                   for k, c in charts.items()},
-    }
-    results = _clean_json(results)
-    with open(os.path.join(out, "results.json"), "w", encoding="utf-8") as f:
-        json.dump(results, f, indent=1)
-    for k, r in refs.items():
-        images[f"reference:{k}"] = imageio.png_bytes(metrics.view_standard(r.image))
-    for b, img in baseline_images.items():
-        spp = baselines[b][-1]["spp"]
-        images[f"baseline:{b}"] = imageio.png_bytes(metrics.view_standard(img))
-        imageio.write_png(os.path.join(out, f"baseline_{b}_{spp}spp.png"), metrics.view_standard(img))
-    chart_html = "\n".join(charts[k]["svg_text"] for k in ([primary] + [k for k in kinds if k != primary]))
-    _, legend = metrics.heatmap(np.zeros((1, 1, 3)), np.zeros((1, 1, 3)))
-    report.write_html(os.path.join(out, "report.html"),
-                      title=f"GI Preview vs Cycles: {scene.name} ({w}x{h})", results=results,
-                      images=images, chart_svg=chart_html,
-                      colorbar_png=imageio.png_bytes(metrics.colorbar(256, 10)), legend=legend)
-    log(f"wrote {os.path.join(out, 'results.json')} and report.html")
-    return results
+        opts, metrics, imageio, report, sweep = self.opts, self.metrics, self.imageio, self.report, self.sweep
+        out, primary, kinds = self.out, self.primary, self.kinds
+        os.makedirs(out, exist_ok=True)
+        w, h, name = meta["w"], meta["h"], meta["scene"]
+        for e in entries:
+            if e["speedups"] is None:
+                e["speedups"] = self.speedups(e)
+                e["speedup"] = e["speedups"]["cycles"]
+
+        def strip(points):
+            return [{k: v for k, v in c.items() if k != "image"} for c in points]
+        curves = {k: strip(bc["points"]) for k, bc in self.curves.items()}
+        curve_info = {k: {key: v for key, v in bc.items() if key != "points"} for k, bc in self.curves.items()}
+        baselines = {b: strip(bc["points"]) for b, bc in self.baselines.items()}
+        baseline_info = {b: {key: v for key, v in bc.items() if key != "points"} for b, bc in self.baselines.items()}
+        baseline_images = {b: bc["points"][-1]["image"] for b, bc in self.baselines.items()}
+        if primary != "full" and len(opts.baselines) > 1:
+            log(f"baselines {', '.join(opts.baselines[1:])} need the 'full' reference (--reference "
+                f"{opts.reference}): not measured")
+        # ---- chart(s): the primary one carries every baseline
+        charts = {}
+        for k in kinds:
+            pts = [{"technique": e["technique"], "quality": e["quality"], "time_ms": e["time_ms"],
+                    "error": e["relmse"]} for e in entries if e["reference"] == k]
+            base = os.path.join(out, "chart" if k == primary else f"chart_{k}")
+            labels = {"cycles": "Cycles (spp)", "cycles_denoised": "Cycles + OIDN (spp)",
+                      "eevee": "EEVEE ray tracing (samples)"}
+            cur = {labels[b]: c for b, c in self.baseline_curves_for(k).items()}
+            c = sweep.write_chart(pts, cur, base, metric="relMSE",
+                                  title=f"{name}: cost vs accuracy against Cycles '{k}' ({opts.ref_spp} spp)")
+            charts[k] = c
+            if c["png"] is None and k == primary:
+                log("matplotlib is not importable: chart written as SVG only")
+
+        gl_info = meta["gl_info"]
+        speedups = [{"technique": e["technique"], "quality": e["quality"], "reference": e["reference"],
+                     "baseline": b, **v} for e in entries for b, v in e["speedups"].items()]
+        results = {
+            "scene": name, "resolution": [w, h], "fingerprint": meta["fp"],
+            "run": {"date": datetime.datetime.now().isoformat(timespec="seconds"),
+                    "blender": meta["blender"], "frames": opts.frames, "samples": opts.samples,
+                    "ref_spp": opts.ref_spp, "reference_mode": opts.reference, "resolution": f"{w}x{h}",
+                    "device": "GI Preview on {} ({}); Cycles on the CPU; EEVEE on Blender's own OpenGL context".format(
+                        gl_info.get("GL_RENDERER"), gl_info.get("GL_VERSION")),
+                    "gl_renderer": gl_info.get("GL_RENDERER"), "gl_version": gl_info.get("GL_VERSION"),
+                    "baselines": ",".join(baselines)},
+            "reference": {**refs[primary].info()},
+            "references": {k: r.info() for k, r in refs.items()},
+            "reference_settings": getattr(self.reference, "FAIR_SETTINGS_SUMMARY", ""),
+            "export_ms": meta["export_ms"],
+            "scene_support": meta["support"],
+            "baselines": baselines,
+            "baselines_reference": primary,
+            "baselines_setup": baseline_info,
+            "cycles_curve": curves[primary],
+            "cycles_curves": curves,
+            "cycles_curves_setup": curve_info,
+            "entries": entries,
+            "results": entries,
+            "speedup": [{"technique": e["technique"], "quality": e["quality"], "reference": e["reference"],
+                         **e["speedup"]} for e in entries],
+            "speedups": speedups,
+            "charts": {k: {"svg": os.path.basename(c["svg"]), "png": c["png"] and os.path.basename(c["png"])}
+                       for k, c in charts.items()},
+        }
+        results = _clean_json(results)
+        with open(os.path.join(out, "results.json"), "w", encoding="utf-8") as f:
+            json.dump(results, f, indent=1)
+        for k, r in refs.items():
+            images[f"reference:{k}"] = imageio.png_bytes(metrics.view_standard(r.image))
+        for b, img in baseline_images.items():
+            spp = baselines[b][-1]["spp"]
+            images[f"baseline:{b}"] = imageio.png_bytes(metrics.view_standard(img))
+            imageio.write_png(os.path.join(out, f"baseline_{b}_{spp}spp.png"), metrics.view_standard(img))
+        chart_html = "\n".join(charts[k]["svg_text"] for k in ([primary] + [k for k in kinds if k != primary]))
+        _, legend = metrics.heatmap(np.zeros((1, 1, 3)), np.zeros((1, 1, 3)))
+        report.write_html(os.path.join(out, "report.html"),
+                          title=f"GI Preview vs Cycles: {name} ({w}x{h})", results=results,
+                          images=images, chart_svg=chart_html,
+                          colorbar_png=imageio.png_bytes(metrics.colorbar(256, 10)), legend=legend)
+        log(f"wrote {os.path.join(out, 'results.json')} and report.html")
+        return results
+
+
+def run(opts, *, pkg=None, session=None, scene=None) -> dict:
+    r = _Run(opts, pkg=pkg, session=session)
+    r.load_scene(scene)
+    refs, curves, baselines = {}, {}, {}
+    for k in r.kinds:
+        refs[k] = r.get_reference(k)
+        curves[k] = r.cycles_curve(k, refs[k])
+        if k == r.primary:
+            baselines["cycles"] = curves[k]
+    # the other baselines, against the primary reference
+    for name in r.baseline_names():
+        baselines[name] = r.baseline(name, refs[r.primary], baselines["cycles"]["setup_ms"])
+    r.set_curves(curves, baselines)
+    entries, images = [], {}
+    for i, (tech, q) in enumerate(r.plan):
+        e, im = r.render_row(tech, q, refs, i, len(r.plan))
+        entries += e
+        images.update(im)
+    r.gl.get_gl().call(r.session.release_all)
+    return r.finish(r.scene_meta(), refs, entries, images)
 
 
 # ---------------------------------------------------------------- --animation
@@ -567,7 +772,19 @@ def main():
     except ImportError:
         raise SystemExit("gi_compare: needs Blender (blender -b -P) or the bpy module (pip install bpy)")
     try:
-        run_animation(opts) if opts.animation else run(opts)
+        if opts.distributed:
+            sys.path.insert(0, HERE)
+            import _distributed  # Dask is imported only here
+
+            summary = _distributed.run(opts, expand_scenes(opts.scenes), log=log)
+            if summary["failed"] and len(summary["failed"]) == len(summary["scenes"]):
+                raise SystemExit(1)
+        elif len(opts.scenes) > 1 or (opts.scenes and os.path.isdir(opts.scenes[0])):
+            summary = run_scenes(opts, expand_scenes(opts.scenes))
+            if summary["failed"] and len(summary["failed"]) == len(summary["scenes"]):
+                raise SystemExit(1)
+        else:
+            run_animation(opts) if opts.animation else run(opts)
     except Exception as exc:  # GLUnavailableError: one clear line, not a traceback
         if type(exc).__name__ != "GLUnavailableError":
             raise

@@ -69,7 +69,7 @@ for line in open(sys.argv[1], encoding="utf-8"):
     if not req:
         continue
     name, _, wanted = req.partition("==")
-    name = name.strip()
+    name = name.split("[", 1)[0].strip()  # dask[distributed]: the extra's packages come with it
     try:
         have = metadata.version(name)
     except metadata.PackageNotFoundError:

@@ -673,3 +673,115 @@ def write_html(path: str, **kwargs) -> str:
     with open(path, "w", encoding="utf-8") as f:
         f.write(build_html(**kwargs))
     return path
+
+
+# ---------------------------------------------------------------- index of a sweep over scenes
+def _index_chart(scenes: list[dict], width: int = 760, height: int = 360) -> str:
+    """relMSE (log) of every technique and quality level per scene, as an inline SVG: one column
+    per scene, one colour per technique label."""
+    ok = [s for s in scenes if not s.get("error") and s.get("rows")]
+    labels = []
+    for s in ok:
+        for r in s["rows"]:
+            name = _row_name(r)
+            if name not in labels:
+                labels.append(name)
+    vals = [r["relmse"] for s in ok for r in s["rows"] if isinstance(r.get("relmse"), (int, float))
+            and math.isfinite(r["relmse"]) and r["relmse"] > 0]
+    if not vals:
+        return ""
+    palette = ["#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf",
+               "#bcbd22", "#7f7f7f"]
+    lo, hi = math.floor(math.log10(min(vals))), math.ceil(math.log10(max(vals)))
+    hi = hi if hi > lo else lo + 1
+    ml, mr, mt, mb = 64, 190, 20, 70
+    pw, ph = width - ml - mr, height - mt - mb
+
+    def y(v):
+        return mt + ph - (math.log10(v) - lo) / (hi - lo) * ph
+
+    p = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" font-family="sans-serif" '
+         f'font-size="11" id="scene-chart"><rect width="{width}" height="{height}" fill="white"/>']
+    for d in range(lo, hi + 1):
+        yy = y(10.0 ** d)
+        p.append(f'<line x1="{ml}" y1="{yy:.1f}" x2="{ml + pw}" y2="{yy:.1f}" stroke="#ddd"/>'
+                 f'<text x="{ml - 6}" y="{yy + 4:.1f}" text-anchor="end">1e{d}</text>')
+    p.append(f'<rect x="{ml}" y="{mt}" width="{pw}" height="{ph}" fill="none" stroke="#333"/>')
+    p.append(f'<text x="14" y="{mt + ph / 2:.1f}" text-anchor="middle" transform="rotate(-90 14 {mt + ph / 2:.1f})">'
+             f'relMSE against Cycles (log scale)</text>')
+    step = pw / max(1, len(ok))
+    for i, s in enumerate(ok):
+        cx = ml + step * (i + 0.5)
+        p.append(f'<text x="{cx:.1f}" y="{mt + ph + 14}" text-anchor="end" '
+                 f'transform="rotate(-30 {cx:.1f} {mt + ph + 14})">{_esc(s["label"])}</text>')
+        n = len(s["rows"])
+        for j, r in enumerate(s["rows"]):
+            v = r.get("relmse")
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
+                continue
+            x = cx + (j - (n - 1) / 2) * min(8.0, step * 0.8 / max(1, n))
+            col = palette[labels.index(_row_name(r)) % len(palette)]
+            p.append(f'<circle cx="{x:.1f}" cy="{y(v):.1f}" r="4" fill="{col}"><title>{_esc(s["label"])}: '
+                     f'{_esc(_row_name(r))} relMSE {v:.4g}</title></circle>')
+    for k, name in enumerate(labels):
+        ly = mt + 10 + 16 * k
+        p.append(f'<circle cx="{ml + pw + 16}" cy="{ly}" r="4" fill="{palette[k % len(palette)]}"/>'
+                 f'<text x="{ml + pw + 26}" y="{ly + 4}">{_esc(name)}</text>')
+    p.append("</svg>")
+    return "\n".join(p)
+
+
+def build_index(summary: dict) -> str:
+    """The index page of a sweep over scenes (``summary.json``'s dict): a table with one row per
+    scene (its report, reference time, and relMSE and ms/frame of every technique and quality
+    level against Cycles; a failed scene shows its error) and a chart of relMSE across scenes."""
+    scenes = summary.get("scenes", [])
+    cols = []
+    for s in scenes:
+        for r in s.get("rows") or []:
+            name = _row_name(r)
+            if name not in cols:
+                cols.append(name)
+    n_fail = len(summary.get("failed") or [])
+    wall = summary.get("wall_s")
+    how = (f"{summary['workers']} Dask worker(s)" if summary.get("workers") else "one process")
+    title = f"GI Preview vs Cycles: {len(scenes)} scene(s)"
+    p = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{_esc(title)}</title>",
+         f"<style>{_CSS}</style></head><body>", f"<h1>{_esc(title)}</h1>",
+         f"<p class='meta'>{len(scenes) - n_fail} compared, {n_fail} failed; {_esc(how)}"
+         + (f", {wall:.1f} s wall" if isinstance(wall, (int, float)) else "")
+         + f"; {len(summary.get('tasks_run') or [])} task(s) run, {summary.get('tasks_skipped', 0)} reused "
+           "from an earlier run. Each cell: relMSE against Cycles / ms per frame.</p>"]
+    p.append("<table id='scenes'><thead><tr><th class='l'>scene</th><th class='l'>status</th>"
+             "<th>size</th><th>Cycles ref ms (spp)</th>"
+             + "".join(f"<th>{_esc(c)}</th>" for c in cols) + "</tr></thead><tbody>")
+    for s in scenes:
+        name = _esc(s["label"])
+        link = f"<a href='{_esc(s['report'])}'>{name}</a>" if s.get("report") and not s.get("error") else name
+        if s.get("error"):
+            p.append(f"<tr class='failed' data-scene='{name}'><td class='l'>{link}</td>"
+                     f"<td class='l warn' colspan='{3 + len(cols)}'>failed: {_esc(s['error'])}</td></tr>")
+            continue
+        res = s.get("resolution") or []
+        by = {_row_name(r): r for r in s.get("rows") or []}
+        cells = []
+        for c in cols:
+            r = by.get(c)
+            cells.append(f"<td data-v='{_sortval(r['relmse'])}'>{_num(r['relmse'])} / {_num(r['time_ms'], '{:.3g}')}"
+                         "</td>" if r else f"<td>{_DASH}</td>")
+        p.append(f"<tr data-scene='{name}'><td class='l'>{link}</td><td class='l'>ok</td>"
+                 f"<td>{'x'.join(str(v) for v in res) or _DASH}</td>"
+                 f"<td>{_num(s.get('reference_ms'), '{:.0f}')} ({_esc(s.get('reference_spp'))})</td>"
+                 + "".join(cells) + "</tr>")
+    p.append("</tbody></table>")
+    chart = _index_chart(scenes)
+    if chart:
+        p += ["<h2>relMSE across scenes</h2>", chart]
+    p.append("</body></html>")
+    return "\n".join(p)
+
+
+def write_index(path: str, summary: dict) -> str:
+    with open(path, "w", encoding="utf-8") as f:
+        f.write(build_index(summary))
+    return path
