@@ -178,7 +178,9 @@ def inject_nan(key) -> list[str]:
 
 def _has_float_history(tech: str) -> bool:
     t = techniques.get(tech)()
-    return any(d.history and d.dtype in ("f4", "f2") for p in t.passes(QUALITY) for d in p.resources())
+    # graph-allocated history only: a pass's own buffers (DIRECT's tile bounds) are not in the
+    # graph's resource table that inject_nan writes
+    return any(d.history and d.managed and d.dtype in ("f4", "f2") for p in t.passes(QUALITY) for d in p.resources())
 
 
 # techniques whose graph keeps float history (AUTO: the technique it picks)
