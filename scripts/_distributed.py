@@ -238,6 +238,12 @@ def run(opts, scenes: list[dict], *, client=None, log=print) -> dict:
         label, name = futures.pop(f)
         st = state[label]
         n_done += 1
+        if f.status not in ("finished", "error", "cancelled"):
+            # a result held by a worker that died is "lost": the scheduler computes it again
+            try:
+                f.result()
+            except Exception:  # noqa: BLE001 - reported below from the future's status
+                pass
         if f.status == "finished":
             res = f.result()
             st["parts"].put(name, res)
@@ -247,7 +253,7 @@ def run(opts, scenes: list[dict], *, client=None, log=print) -> dict:
         else:
             try:
                 exc = f.exception()
-                err = f"{type(exc).__name__}: {exc}"
+                err = f"{type(exc).__name__}: {exc}" if exc is not None else f"task {f.status}"
             except Exception as e:  # noqa: BLE001 - a cancelled future has no exception to fetch
                 err = f"{type(e).__name__}: {e}"
             if not st["error"] or (name.startswith("reference_") and not st["error"].startswith("reference_")):
