@@ -51,8 +51,8 @@ def test_gi_compare_cornell(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))  # hermetic reference cache
     monkeypatch.setattr(sys, "argv", [str(SCRIPT), "cornell", "--techniques", "DIRECT", "--res", "64",
                                       "--ref-spp", "64", "--frames", "2", "--quality", "0,1",
-                                      "--eevee-samples", "1,2,4", "--cache", str(tmp_path / "refs"),
-                                      "--out", str(out)])
+                                      "--eevee-samples", "1,2,4", "--ttq", "1,2,4",
+                                      "--cache", str(tmp_path / "refs"), "--out", str(out)])
     _load_script().main()  # a failure raises (SystemExit for a usage or GL error)
     assert "[gi_compare" in capsys.readouterr().out  # progress lines
     res = json.loads((out / "results.json").read_text())
@@ -81,7 +81,7 @@ def test_gi_compare_cornell(tmp_path, monkeypatch, capsys):
     assert d[1]["relmse"] < f[1]["relmse"]  # the direct reference fits a direct-light technique better
     assert len(res["speedup"]) == len(entries)
     for name in ("DIRECT_q0.exr", "DIRECT_q0.png", "DIRECT_q1_vs_full_error.png", "reference_full.exr",
-                 "chart.svg", "report.html"):
+                 "chart.svg", "time_to_quality.svg", "report.html"):
         assert (out / name).exists(), name
     html = (out / "report.html").read_text()
     imgs = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', html)
@@ -98,8 +98,20 @@ def _check_setup_and_baselines(res, out):
         assert _finite(e["setup_ms"]) and e["setup_ms"] > 0, e["setup_ms"]
         assert e["setup"]["export_ms"] > 0 and e["setup"]["renderer_ms"] >= 0
         assert e["setup_ms"] == pytest.approx(e["setup"]["export_ms"] + e["setup"]["renderer_ms"])
-        # per-frame time x samples: the setup is not in time_ms
-        assert e["time_ms"] == pytest.approx(e["frame_ms"] * e["samples"])
+        # time_ms: one render after setup (warm-up and read-back counted), the frames within it
+        c = e["cost"]
+        assert e["time_ms"] == pytest.approx(c["render_ms"]) and e["setup_ms"] == pytest.approx(c["setup_cold_ms"])
+        assert e["frames_ms"] == pytest.approx(e["frame_ms"] * e["samples"])
+        assert e["frames_ms"] <= e["time_ms"] * 1.05, e
+        # cold: the driver's shader cache cannot serve the programs (salted source), so the
+        # first render compiles everything; warm: the same programs again from that cache
+        assert c["first_render_cold_ms"] > c["first_render_warm_ms"], c
+        assert e["setup_warm_ms"] < e["setup_ms"], c
+        assert _finite(c["viewport_frame_ms"]) and 0 < c["viewport_frame_ms"] < e["time_ms"], c
+        ttq = e["time_to_quality"]
+        assert [p["samples"] for p in ttq] == [1, 2, 4]
+        assert all(b["time_ms"] > a["time_ms"] for a, b in zip(ttq, ttq[1:])), ttq
+        assert all(_finite(p["relmse"]) for p in ttq)
         print(f"{e['technique']} q{e['quality']} vs {e['reference']}: {e['time_ms']:.1f} ms, "
               f"setup {e['setup_ms']:.0f} ms, relMSE {e['relmse']:.4g}")
     b = res["baselines"]

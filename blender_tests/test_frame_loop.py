@@ -143,6 +143,33 @@ def test_timer_results_arrive(cornell):
     assert ok and set(out) == {"x"} and math.isfinite(out["x"]) and out["x"] >= 0.0
 
 
+def test_a_render_splits_its_time_into_setup_prep_warmup_and_frames(cornell):
+    """RenderResult's cost parts: one-time setup (paid by a new session only), the per-call
+    preparation, the warm-up frames (F12 of a probe technique only) and the accumulated frames.
+    They are disjoint parts of the call's wall time, so together they never exceed it."""
+    key = "loop_cost"
+    try:
+        first = session.render(cornell, "RTXGI", 1, 2, session=key)
+        again = session.render(cornell, "RTXGI", 1, 2, session=key)
+        view = session.render(cornell, "RTXGI", 1, 1, session=key, keep_history=True, continue_accumulation=True)
+        direct = session.render(cornell, "DIRECT", 1, 2, session=key)
+    finally:
+        session.release_session(key).result()
+    # (frames this call accumulated: the viewport call adds one to the F12's two)
+    for r, n in ((first, 2), (again, 2), (view, 1), (direct, 2)):
+        parts = (r.setup_ms, r.prep_ms, r.warmup_ms, r.frame_ms)
+        assert all(math.isfinite(v) and v >= 0.0 for v in parts), parts
+        assert r.setup_ms + r.prep_ms + r.warmup_ms + r.frame_ms * n <= r.total_ms * 1.05 + 1.0, (
+            parts, n, r.total_ms)
+    # F12 of a probe technique warms its probes up first; every F12 does, setup only the first
+    assert first.warmup_frames > 0 and first.warmup_ms > 0.0
+    assert again.warmup_frames > 0 and again.warmup_ms > 0.0
+    assert first.setup_ms > 0.0 and again.setup_ms < first.setup_ms
+    # a viewport redraw continues the accumulation: no warm-up; DIRECT has none to run
+    assert view.warmup_frames == 0 and view.warmup_ms == 0.0
+    assert direct.warmup_frames == 0 and direct.warmup_ms == 0.0
+
+
 def test_fallback_to_glfinish(cornell, monkeypatch, finish_counter):
     gl = get_gl()
     fenced = session.render(cornell, "DIRECT", 1, 4, session="loop_fb_a")

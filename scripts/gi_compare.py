@@ -15,9 +15,12 @@ ARGS
   --quality LEVELS      e.g. 0,1,2 or all (default: all levels of each technique)
   --res N               width in pixels (height keeps the scene's aspect; demo scenes are square)
   --ref-spp N           Cycles reference samples (default 256)
-  --frames N            timed renders per technique and quality, after one untimed warm-up
-                        render (time_ms = median frame time x samples; default 3)
+  --frames N            timed renders per technique and quality, after a cold and a warm first
+                        render (time_ms = their median wall time; default 3)
   --samples N           accumulation samples for techniques that converge (default 1)
+  --ttq LIST            sample counts of each technique's time-to-quality curve (default
+                        1,2,4,8,16; none to skip)
+  --viewport-frames N   viewport redraws timed per technique (default 4)
   --cycles-curve LIST   Cycles spp list for its own error/time curve (default 1,2,4,...,ref-spp/4)
   --baselines LIST      what a user would pick instead, measured in the same run against the
                         'full' reference: any of cycles, cycles_denoised, eevee, or none
@@ -52,11 +55,18 @@ DIR, plus index.html and summary.json; a rerun keeps what an earlier run finishe
   --retries N           with Dask: runs of a task that raises (2); --no-resume: run everything again
 Without --workers or --scheduler nothing of Dask is imported.
 
-Timing: a technique's ``time_ms`` is its per-frame time x samples; its one-time setup
-(scene export, GPU upload, BVH build, shader compilation) is ``setup_ms``, measured apart.
-The baselines' wall times are split the same way: ``wall = setup + per_sample x spp``
-fitted over each curve; each point's ``time_ms`` leaves the setup out (``wall_ms`` keeps
-the raw wall time). Equal-error speed-ups are given against every baseline.
+Timing (docs/COMPARISON.md, "Cost"): a technique's ``time_ms`` is the wall time of one F12
+render after setup: the per-render preparation (scene analysis, upload check, AUTO's plan),
+the warm-up frames, ``samples`` accumulated frames and the read-back (``frames_ms`` is the
+frames alone, ``frame_ms`` x samples). Its one-time setup (scene export, GPU upload, BVH
+build, shader compilation, including the driver's compiles at first use) is measured twice:
+``setup_ms`` cold (the driver's shader cache cannot serve it) and ``setup_warm_ms`` (it can).
+``viewport_frame_ms`` is one viewport redraw. ``time_to_quality``: the error after 1, 2, 4,
+... samples against the wall time from the first frame (time_to_quality.svg). The baselines'
+wall times are split the same way: ``wall = setup + per_sample x spp`` fitted over each
+curve; each point's ``time_ms`` leaves the setup out (``wall_ms`` keeps the raw wall time).
+Equal-error speed-ups are given against every baseline with ``time_ms`` (warm-up counted),
+and with the frames alone as ``speedups_frames_only``.
 
 Writes into DIR: per technique and quality ``<TECH>_q<Q>.exr`` (linear), ``.png`` (sRGB
 "Standard" view), ``<TECH>_q<Q>_vs_<kind>_error.png`` (relMSE heat map); ``reference_<kind>``
@@ -72,6 +82,7 @@ import importlib
 import json
 import math
 import os
+import secrets
 import statistics
 import sys
 import time
@@ -120,6 +131,10 @@ def parse_args(argv: list[str], scene_optional: bool):
     p.add_argument("--ref-spp", type=int, default=256)
     p.add_argument("--frames", type=int, default=3)
     p.add_argument("--samples", type=int, default=1)
+    p.add_argument("--ttq", default="1,2,4,8,16",
+                   help="sample counts of each technique's time-to-quality curve, or none")
+    p.add_argument("--viewport-frames", type=int, default=4,
+                   help="viewport redraws timed per technique (one frame each, analysis and read-back included)")
     p.add_argument("--cycles-curve", default="")
     p.add_argument("--baselines", default="cycles,cycles_denoised,eevee")
     p.add_argument("--denoised-curve", default="")
@@ -165,6 +180,9 @@ def parse_args(argv: list[str], scene_optional: bool):
         if not v or v[0] < 1:
             p.error(f"{name} must hold sample counts >= 1, got {text!r}")
         return v
+    a.ttq = [] if a.ttq.strip().lower() in ("", "none", "0") else spp_list(a.ttq, "--ttq")
+    if a.viewport_frames < 0:
+        p.error("--viewport-frames must be >= 0")
     if a.cycles_curve:
         a.curve = spp_list(a.cycles_curve, "--cycles-curve")
     else:
@@ -224,6 +242,14 @@ def _clean_json(o):
         except (ValueError, TypeError):
             pass
     return o
+
+
+_ID_COLLECTIONS = ("scenes", "objects", "meshes", "materials", "lights", "cameras", "worlds", "images",
+                   "node_groups", "collections", "textures", "curves")
+
+
+def _data_ids(bpy) -> dict:
+    return {(attr, idb.name_full): idb for attr in _ID_COLLECTIONS for idb in getattr(bpy.data, attr)}
 
 
 def _load_scene(bpy, name_or_path: str | None, demo_scenes):
@@ -341,7 +367,7 @@ def run_scenes(opts, scenes: list[dict]) -> dict:
     return write_index(opts, rows, wall_s=time.perf_counter() - t0)
 
 
-_RESULT_OPTIONS = ("techniques", "denoiser", "quality", "res", "ref_spp", "frames", "samples", "curve",
+_RESULT_OPTIONS = ("techniques", "denoiser", "quality", "res", "ref_spp", "frames", "samples", "ttq", "curve",
                    "baselines", "denoised_curve", "eevee_samples", "reference", "seed", "no_cache")
 
 
@@ -412,6 +438,23 @@ class _Run:
         return [k] if k == "full" else [k, "full"]
 
     # ---- the scene, OpenGL and the export
+    built_demo: list = []  # the datablocks of a demo scene this run built
+
+    def release_scene(self):
+        """Remove the demo scene this run built and its datablocks (a scene given or loaded from
+        a file stays)."""
+        if self.built_demo:
+            import bpy
+            alive = []
+            for idb in self.built_demo:
+                try:
+                    idb.name  # noqa: B018 - raises ReferenceError once removed
+                    alive.append(idb)
+                except ReferenceError:
+                    pass
+            bpy.data.batch_remove(alive)
+            self.scene, self.built_demo = None, []
+
     def load_scene(self, scene=None, quiet: bool = False):
         import bpy
 
@@ -421,7 +464,13 @@ class _Run:
             demo = None
             if opts.scene and not opts.scene.lower().endswith(".blend"):
                 demo = importlib.import_module(self.pkg.__name__ + ".blender.demo_scenes")
+            before = _data_ids(bpy) if demo is not None else None
             scene = _load_scene(bpy, opts.scene, demo)
+            # a demo scene built for this run is removed with every datablock it made when the
+            # run ends (release_scene), so each run in one process builds the same scene, with
+            # the same names (and so the same reference)
+            if demo is not None:
+                self.built_demo = [idb for key, idb in _data_ids(bpy).items() if key not in before]
         self.scene = scene
         os.makedirs(self.out, exist_ok=True)
         self.w, self.h = w, h = _resolution(scene, opts.res)
@@ -502,10 +551,30 @@ class _Run:
             return {"cycles": [(c["spp"], c["time_ms"], c["relmse"]) for c in self.curves[k]["points"]]}
         return {b: [(c["spp"], c["time_ms"], c["relmse"]) for c in bc["points"]] for b, bc in self.baselines.items()}
 
-    def speedups(self, e) -> dict:
-        return {b: self.sweep.equal_error_speedup(e["relmse"], e["time_ms"], cur,
+    def speedups(self, e, time_key: str = "time_ms") -> dict:
+        return {b: self.sweep.equal_error_speedup(e["relmse"], e[time_key], cur,
                                                   name=self.reference.BASELINE_LABELS[b])
                 for b, cur in self.baseline_curves_for(e["reference"]).items()}
+
+    def time_to_quality(self, kw: dict, refs: dict, tech: str) -> dict:
+        """{reference kind: [{"samples", "time_ms", "relmse"}]}: the error after each sample
+        count of ``--ttq`` against the wall time from the first frame (a fresh render's prep
+        and warm-up, then the accumulation continued to the next count; no setup, as in the
+        baselines' curves). What an artist waits for to see that quality."""
+        out = {k: [] for k in self.kinds_for(tech)}
+        t_acc, done = 0.0, 0
+        for n in self.opts.ttq:
+            if n <= done:
+                continue
+            extra = {} if done == 0 else {"keep_history": True, "continue_accumulation": True}
+            t0 = time.perf_counter()
+            r = self.session.render(self.sd, **{**kw, "samples": n - done, **extra})
+            t_acc += (time.perf_counter() - t0) * 1e3
+            done = n
+            for k in out:
+                out[k].append({"samples": n, "time_ms": t_acc,
+                               "relmse": float(self.metrics.relmse(r.image, refs[k].image))})
+        return out
 
     # ---- one technique at one quality level: the rows (one per reference kind) and report images
     def render_row(self, tech, q, refs, i=0, n=1):
@@ -516,29 +585,56 @@ class _Run:
         denoiser = self.techniques.resolve_denoiser(tech, opts.denoiser)
         log(f"[{i + 1}/{n}] {tech} q{q}{'' if denoiser == 'NONE' else ' + ' + denoiser}: "
             f"{opts.frames} render(s) of {opts.samples} sample(s) ...")
-        # a fresh GPU session per row, so every row pays (and reports) its own one-time setup:
-        # GPU upload, BVH build, shader compilation; then one untimed warm-up render and the
-        # timed ones (time_ms never includes setup)
+        # Every row starts from fresh GPU sessions, so it pays and reports its own setup, whatever
+        # rows ran before: (1) cold: a new session whose programs the driver's shader cache
+        # cannot serve (a new salt in their source: as on a first start after installing the
+        # add-on or a driver); (2) warm: a new session again, the driver's cache now holding the
+        # programs (a later start of Blender); (3) the timed renders in that session (a repeated
+        # F12: prep + warm-up frames + accumulated frames + read-back, no setup). A setup is the
+        # excess of (1) or (2) over (3)'s median, plus the scene export.
         gl_call = self.gl.get_gl().call
+        shaders = importlib.import_module(self.pkg.__name__ + ".render.shaders")
+        kw = dict(technique=tech, quality=q, denoiser=denoiser)
+
+        def timed(**extra):
+            t0 = time.perf_counter()
+            r = session.render(sd, **{**kw, "samples": opts.samples, **extra})
+            return r, (time.perf_counter() - t0) * 1e3
+
         gl_call(session.release_all)
-        t0 = time.perf_counter()
-        warm = session.render(sd, technique=tech, quality=q, samples=opts.samples, denoiser=denoiser)
-        warm_ms = (time.perf_counter() - t0) * 1e3
-        results = []
-        for _ in range(opts.frames):
-            results.append(session.render(sd, technique=tech, quality=q, samples=opts.samples, denoiser=denoiser))
+        shaders.set_driver_cache_salt(secrets.randbits(30))
+        try:
+            cold, cold_ms = timed()
+            gl_call(session.release_all)
+            warm, warm_ms = timed()
+            runs = [timed() for _ in range(opts.frames)]
+            ttq = self.time_to_quality(kw, refs, tech) if opts.ttq else {}
+            # the viewport: one frame per redraw, continuing the accumulation; its wall time per
+            # call is what a redraw costs (analysis, upload check, the frame, the read-back)
+            vp_ms = [timed(samples=1, keep_history=True, continue_accumulation=True)[1]
+                     for _ in range(opts.viewport_frames)]
+        finally:
+            shaders.set_driver_cache_salt(None)
+        results = [r for r, _ in runs]
         res = results[-1]
+        render_ms = statistics.median(ms for _, ms in runs)
         frame_ms = statistics.median(float(r.frame_ms) for r in results)
         total_ms = statistics.median(float(r.total_ms) for r in results)
         n_samples = max(1, int(getattr(res, "samples", opts.samples) or 1))
-        time_ms = frame_ms * n_samples
-        renderer_setup = getattr(warm, "setup_ms", None)
-        if renderer_setup is not None:
-            setup_source = "RenderResult.setup_ms of the first render"
-        else:  # renderer without its own setup timer: the first render's excess over a timed one
-            renderer_setup = max(0.0, warm_ms - total_ms)
-            setup_source = "first render's wall time minus a later render's"
-        setup_ms = self.export_ms + float(renderer_setup)
+        # time_ms: what one render costs after setup (warm-up and read-back counted); the
+        # frames alone (frame_ms x samples) are kept as frames_ms
+        time_ms = render_ms
+        frames_ms = frame_ms * n_samples
+        setup_ms = self.export_ms + max(0.0, cold_ms - render_ms)
+        setup_warm_ms = self.export_ms + max(0.0, warm_ms - render_ms)
+        cost = {"setup_cold_ms": setup_ms, "setup_warm_ms": setup_warm_ms, "export_ms": self.export_ms,
+                "first_render_cold_ms": cold_ms, "first_render_warm_ms": warm_ms,
+                "renderer_setup_ms": float(getattr(cold, "setup_ms", 0.0) or 0.0),
+                "warmup_frames": int(statistics.median(int(r.warmup_frames) for r in results)),
+                "warmup_ms": statistics.median(float(r.warmup_ms) for r in results),
+                "prep_ms": statistics.median(float(r.prep_ms) for r in results),
+                "render_ms": render_ms, "frames_ms": frames_ms,
+                "viewport_frame_ms": statistics.median(vp_ms) if vp_ms else None}
         img = np.asarray(res.image, np.float32)
         base = f"{tech}_q{q}"
         imageio.write_exr(os.path.join(out, base + ".exr"), img)
@@ -563,10 +659,14 @@ class _Run:
             epath = os.path.join(out, f"{base}_vs_{k}_error.png")
             imageio.write_png(epath, heat)
             e = {"technique": tech, "quality": q, "denoiser": denoiser, "reference": k, "time_ms": time_ms,
-                 "frame_ms": frame_ms, "total_ms": total_ms, "samples": int(getattr(res, "samples", 1)),
-                 "setup_ms": setup_ms,
-                 "setup": {"export_ms": self.export_ms, "renderer_ms": float(renderer_setup),
-                           "first_render_ms": warm_ms, "source": setup_source},
+                 "frame_ms": frame_ms, "frames_ms": frames_ms, "total_ms": total_ms,
+                 "samples": int(getattr(res, "samples", 1)), "setup_ms": setup_ms, "setup_warm_ms": setup_warm_ms,
+                 "warmup_frames": cost["warmup_frames"], "warmup_ms": cost["warmup_ms"],
+                 "viewport_frame_ms": cost["viewport_frame_ms"], "cost": cost,
+                 "setup": {"export_ms": self.export_ms, "renderer_ms": setup_ms - self.export_ms,
+                           "first_render_ms": cold_ms,
+                           "source": "cold first render's wall time minus a timed render's"},
+                 "time_to_quality": ttq.get(k, []),
                  "relmse": m["relmse"], "flip": m["flip"], "flip_ldr": m["flip_ldr"], "ssim": m["ssim"],
                  "psnr": m["psnr"], "nonfinite_pixels": m["nonfinite_pixels"],
                  "image_sha256": image_sha256,
@@ -582,11 +682,14 @@ class _Run:
             images[self.report.entry_id(tech, q, k)] = {
                 "ours": ours_png, "cycles": imageio.png_bytes(metrics.view_standard(ref.image)),
                 "error": imageio.png_bytes(heat)}
-            line = (f"  vs {k}: {time_ms:.2f} ms (+ setup {setup_ms:.0f} ms)  relMSE {m['relmse']:.4g}  "
-                    f"FLIP {m['flip']:.4g}  SSIM {m['ssim']:.4f}")
+            line = (f"  vs {k}: {time_ms:.1f} ms/render ({cost['warmup_frames']} warm-up frames "
+                    f"{cost['warmup_ms']:.0f} ms + {n_samples} x {frame_ms:.1f} ms; setup cold {setup_ms:.0f} / "
+                    f"warm {setup_warm_ms:.0f} ms)  relMSE {m['relmse']:.4g}  FLIP {m['flip']:.4g}  "
+                    f"SSIM {m['ssim']:.4f}")
             if self.baselines:  # the curves are known: the speed-ups now
                 sps = e["speedups"] = self.speedups(e)
                 e["speedup"] = sps["cycles"]
+                e["speedups_frames_only"] = self.speedups(e, "frames_ms")
                 line += "  speed-up: " + "  ".join(f"{b} {self.sweep.speedup_text(v, plain=True)}"
                                                    for b, v in sps.items())
             log(line)
@@ -606,6 +709,7 @@ class _Run:
             if e["speedups"] is None:
                 e["speedups"] = self.speedups(e)
                 e["speedup"] = e["speedups"]["cycles"]
+                e["speedups_frames_only"] = self.speedups(e, "frames_ms")
 
         def strip(points):
             return [{k: v for k, v in c.items() if k != "image"} for c in points]
@@ -631,6 +735,20 @@ class _Run:
             charts[k] = c
             if c["png"] is None and k == primary:
                 log("matplotlib is not importable: chart written as SVG only")
+        # time to quality: each technique's error against wall time from its first frame
+        ttq_series = {f"{e['technique']} q{e['quality']}" + (f" + {e['denoiser']}" if e.get("denoiser") not in
+                                                              (None, "NONE") else ""):
+                      [(c["samples"], c["time_ms"], c["relmse"])
+                                                          for c in e.get("time_to_quality") or []]
+                      for e in entries if e["reference"] == primary and e.get("time_to_quality")}
+        if ttq_series:
+            labels = {"cycles": "Cycles (spp)", "cycles_denoised": "Cycles + OIDN (spp)",
+                      "eevee": "EEVEE ray tracing (samples)"}
+            charts["time_to_quality"] = sweep.write_chart(
+                [], {labels[b]: c for b, c in self.baseline_curves_for(primary).items()},
+                os.path.join(out, "time_to_quality"), metric="relMSE", series=ttq_series,
+                xlabel="wall time from the first frame (ms, log scale; setup left out)",
+                title=f"{name}: time to quality against Cycles '{primary}' (samples labelled)")
 
         gl_info = meta["gl_info"]
         speedups = [{"technique": e["technique"], "quality": e["quality"], "reference": e["reference"],
@@ -673,6 +791,11 @@ class _Run:
             images[f"baseline:{b}"] = imageio.png_bytes(metrics.view_standard(img))
             imageio.write_png(os.path.join(out, f"baseline_{b}_{spp}spp.png"), metrics.view_standard(img))
         chart_html = "\n".join(charts[k]["svg_text"] for k in ([primary] + [k for k in kinds if k != primary]))
+        if "time_to_quality" in charts:
+            chart_html += ("\n<h3>Time to quality</h3><p class=\"meta\">Error against the wall time from the "
+                           "first frame: warm-up and accumulation counted, setup left out on every side. "
+                           "Each technique's points are its sample counts; the baselines' are their spp.</p>\n"
+                           + charts["time_to_quality"]["svg_text"])
         _, legend = metrics.heatmap(np.zeros((1, 1, 3)), np.zeros((1, 1, 3)))
         report.write_html(os.path.join(out, "report.html"),
                           title=f"GI Preview vs Cycles: {name} ({w}x{h})", results=results,
@@ -701,7 +824,10 @@ def run(opts, *, pkg=None, session=None, scene=None) -> dict:
         entries += e
         images.update(im)
     r.gl.get_gl().call(r.session.release_all)
-    return r.finish(r.scene_meta(), refs, entries, images)
+    try:
+        return r.finish(r.scene_meta(), refs, entries, images)
+    finally:
+        r.release_scene()
 
 
 # ---------------------------------------------------------------- --animation

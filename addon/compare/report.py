@@ -365,7 +365,10 @@ def _member_cell(group: list[dict], texts: list[str], sortv, title: str = "", cl
 
 
 def _summary(groups: list[list[dict]], images: dict, ref_kind: str) -> list[str]:
-    many_samples = any((e.get("samples") or 1) > 1 for g in groups for e in g)
+    def render_text(e):
+        n, w = e.get("samples") or 1, e.get("warmup_frames") or 0
+        what = f"{n} sample{'s' if n != 1 else ''}" + (f" + {w} warm-up" if w else "")
+        return f'{_num(e.get("time_ms"), "{:.1f}")} <span class="meta">({what})</span>'
     p = ["<h2>Summary</h2>",
          f'<p class="meta">One row per distinct result, against Cycles &lsquo;{_esc(ref_kind)}&rsquo;; '
          'click a column header to sort. relMSE: lower is closer to Cycles. Speed-up: the baseline&rsquo;s '
@@ -376,7 +379,8 @@ def _summary(groups: list[list[dict]], images: dict, ref_kind: str) -> list[str]
          '<th class="l sortable" data-sort="text" data-key="technique">technique</th>'
          '<th class="sortable" data-sort="num" data-key="relmse">relMSE</th>'
          '<th class="sortable" data-sort="num" data-key="ms">ms/frame</th>'
-         + ('<th class="sortable" data-sort="num" data-key="ms_image">ms (image)</th>' if many_samples else "")
+         + '<th class="sortable" data-sort="num" data-key="ms_render" title="one F12 render after setup: '
+           'warm-up frames, accumulated frames and read-back">ms (render)</th>'
          + "".join(f'<th class="sortable" data-sort="num" data-key="{b}">{label}</th>'
                    for b, label in _SUMMARY_BASELINES)
          + "</tr></thead><tbody>"]
@@ -389,9 +393,7 @@ def _summary(groups: list[list[dict]], images: dict, ref_kind: str) -> list[str]
                  f'<td class="l" data-v="{_esc(_row_name(e0))}"><b>{names}</b>{same}</td>',
                  _member_cell(g, [_num(e.get("relmse")) for e in g], e0.get("relmse")),
                  _member_cell(g, [_num(e.get("frame_ms"), "{:.2f}") for e in g], e0.get("frame_ms"))]
-        if many_samples:
-            cells.append(_member_cell(g, [f'{_num(e.get("time_ms"), "{:.1f}")} ({_num(e.get("samples"), "{}")} '
-                                          f'samples)' for e in g], e0.get("time_ms")))
+        cells.append(_member_cell(g, [render_text(e) for e in g], e0.get("time_ms")))
         for b, _ in _SUMMARY_BASELINES:
             sp = [_speedup_cell(_speedup(e, b)) for e in g]
             cells.append(_member_cell(g, [s[0] for s in sp], sp[0][1], title=sp[0][2]))
@@ -451,12 +453,15 @@ def _metrics_table(entries: list[dict]) -> list[str]:
     p = ["<details><summary>All metrics</summary>",
          '<p class="meta">relMSE = mean (a&minus;b)&sup2;/(b&sup2;+0.01) on linear HDR; FLIP = HDR-FLIP mean; '
          'SSIM and PSNR on the sRGB "Standard" view. Lower is better except SSIM and PSNR. '
-         'ms/frame: median time of one frame; ms (image): the accumulated image (frames &times; ms/frame), the '
-         'time the chart and the speed-up use; setup ms: one-time scene setup (export, GPU upload, BVH, shader '
-         'compilation), never part of the per-frame time. Speed-up = Cycles time to reach the same relMSE / '
-         'technique time, both without setup (same machine, same run).</p>',
+         'ms/frame: median time of one accumulated frame; warm-up: the frames (and their ms) a render runs '
+         'before it accumulates; ms (render): one F12 render after setup, warm-up, accumulated frames and '
+         'read-back included, the time the chart and the speed-up use; viewport ms: one viewport redraw; setup '
+         'ms: one-time work (export, GPU upload, BVH, shader compilation), cold (empty shader cache) / warm '
+         '(the driver&rsquo;s shader cache filled), never part of the per-render time. Speed-up = Cycles time to '
+         'reach the same relMSE / technique time, both without setup (same machine, same run).</p>',
          '<table><tr><th class="l">technique</th><th>quality</th><th class="l">reference</th>'
-         '<th>ms/frame</th><th>frames</th><th>ms (image)</th><th>setup ms</th><th>relMSE</th><th>FLIP</th>'
+         '<th>ms/frame</th><th>frames</th><th>warm-up</th><th>ms (render)</th><th>viewport ms</th>'
+         '<th>setup ms cold / warm</th><th>relMSE</th><th>FLIP</th>'
          '<th>SSIM</th><th>PSNR (dB)</th><th>non-finite px</th><th>equal-error speed-up</th></tr>']
     for e in entries:
         s = e.get("speedup") or {}
@@ -466,8 +471,12 @@ def _metrics_table(entries: list[dict]) -> list[str]:
         nf_s = f'<span class="warn">{nf}</span>' if nf else "0"
         p.append(f'<tr><td class="l">{_esc(technique_label(e))}</td><td>{_num(e.get("quality"), "{}")}</td>'
                  f'<td class="l">{_esc(e.get("reference"))}</td><td>{_num(e.get("frame_ms"), "{:.2f}")}</td>'
-                 f'<td>{_num(e.get("samples"), "{}")}</td><td>{_num(e.get("time_ms"), "{:.1f}")}</td>'
-                 f'<td>{_num(e.get("setup_ms"), "{:.0f}")}</td><td>{_num(e.get("relmse"))}</td>'
+                 f'<td>{_num(e.get("samples"), "{}")}</td>'
+                 f'<td>{_num(e.get("warmup_frames"), "{}")}'
+                 f'{" (" + _num(e.get("warmup_ms"), "{:.0f}") + " ms)" if e.get("warmup_frames") else ""}</td>'
+                 f'<td>{_num(e.get("time_ms"), "{:.1f}")}</td><td>{_num(e.get("viewport_frame_ms"), "{:.1f}")}</td>'
+                 f'<td>{_num(e.get("setup_ms"), "{:.0f}")} / {_num(e.get("setup_warm_ms"), "{:.0f}")}</td>'
+                 f'<td>{_num(e.get("relmse"))}</td>'
                  f'<td>{_num(e.get("flip"))}</td><td>{_num(e.get("ssim"), "{:.4f}")}</td>'
                  f'<td>{_num(e.get("psnr"), "{:.2f}")}</td><td>{nf_s}</td><td>{sp}</td></tr>')
     p.append("</table>")
@@ -489,12 +498,12 @@ def _speedup_table(results: dict, entries: list[dict], ref_kind: str) -> list[st
         return []
     p = ["<details><summary>Equal-error speed-ups</summary>",
          f'<p class="meta">Each baseline&rsquo;s per-frame time to reach the technique&rsquo;s relMSE against '
-         f'Cycles &lsquo;{_esc(ref_kind)}&rsquo;, divided by the technique&rsquo;s time; one-time setup left out '
-         'on both sides. &gt; 1: the technique is faster at equal error. &le;/&ge;: the technique&rsquo;s error '
+         f'Cycles &lsquo;{_esc(ref_kind)}&rsquo;, divided by the technique&rsquo;s time per render (its warm-up frames '
+         'counted); one-time setup left out on both sides. &gt; 1: the technique is faster at equal error. &le;/&ge;: the technique&rsquo;s error '
          'lies outside the baseline&rsquo;s measured curve, so only a bound is known (&le;: the baseline&rsquo;s '
          'cheapest render is already more accurate; &ge;: the technique beats its most expensive one); hover for '
          'the reason. No extrapolation.</p>',
-         '<table><tr><th class="l">technique</th><th>quality</th><th>ms (image)</th><th>relMSE</th>'
+         '<table><tr><th class="l">technique</th><th>quality</th><th>ms (render)</th><th>relMSE</th>'
          + "".join(f"<th>vs {_esc(_BASELINE_LABELS.get(b, b))}</th>" for b in names) + "</tr>"]
     for e in with_sp:
         cells = []

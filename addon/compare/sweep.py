@@ -238,22 +238,26 @@ def _curve_sets(curve, metric: str) -> list[tuple[str, list[tuple[float, float, 
 
 
 def chart_svg(points, curve, *, metric: str = "relMSE", title: str = "",
-              width: int = 720, height: int = 480) -> str:
+              width: int = 720, height: int = 480, series: dict | None = None,
+              xlabel: str = "time per render (ms, log scale)") -> str:
     """A log-log chart (x: time per frame in ms, y: error) as an SVG string, written by hand.
 
     ``curve``: Cycles' curve, or a dict {legend label: curve} with one curve per baseline
     (Cycles, Cycles + OpenImageDenoise, EEVEE), each a line in its own dash and marker with
     its spp labelled; each technique point is a marker labelled "TECH qN"; points of one
-    technique are joined along its quality ladder."""
+    technique are joined along its quality ladder. ``series``: more curves in the same form as
+    ``curve``'s dict, drawn in colour (a technique's time-to-quality curve, its sample counts
+    labelled)."""
     pts = [p for p in _point_dicts(points) if _ok(p.get("time_ms")) and _ok(p.get("error"))]
     sets = _curve_sets(curve, metric.lower())
-    xs = [p["time_ms"] for p in pts] + [c[1] for _, cur in sets for c in cur]
-    ys = [p["error"] for p in pts] + [c[2] for _, cur in sets for c in cur]
+    colour_sets = _curve_sets(series, metric.lower()) if series else []
+    xs = [p["time_ms"] for p in pts] + [c[1] for _, cur in sets + colour_sets for c in cur]
+    ys = [p["error"] for p in pts] + [c[2] for _, cur in sets + colour_sets for c in cur]
     techs = []
     for p in pts:
         if p["technique"] not in techs:
             techs.append(p["technique"])
-    longest = max([len(label) for label, _ in sets] + [len(str(t)) + 6 for t in techs] + [10])
+    longest = max([len(label) for label, _ in sets + colour_sets] + [len(str(t)) + 6 for t in techs] + [10])
     ml, mr, mt, mb = 70, max(150, 40 + int(_CHAR_W * longest)), 40, 55
     pw, ph = width - ml - mr, height - mt - mb
     parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
@@ -286,7 +290,7 @@ def chart_svg(points, curve, *, metric: str = "relMSE", title: str = "",
         parts.append(f'<text x="{ml - 6}" y="{y + 4:.1f}" text-anchor="end">{_fmt(v)}</text>')
     parts.append(f'<rect x="{ml}" y="{mt}" width="{pw}" height="{ph}" fill="none" stroke="#333"/>')
     parts.append(f'<text x="{ml + pw / 2:.1f}" y="{height - 12}" text-anchor="middle">'
-                 f'time per frame (ms, log scale)</text>')
+                 f'{html.escape(xlabel)}</text>')
     parts.append(f'<text x="16" y="{mt + ph / 2:.1f}" text-anchor="middle" '
                  f'transform="rotate(-90 16 {mt + ph / 2:.1f})">{html.escape(metric)} (log scale)</text>')
     # baseline curves
@@ -317,6 +321,18 @@ def chart_svg(points, curve, *, metric: str = "relMSE", title: str = "",
         segments += [(*a, *b) for a, b in zip(xy, xy[1:])]
         for c, (x, y) in zip(cur, xy):
             parts.append(marker(mk, x, y, col))
+            boxes.append((x - 4, y - 4, x + 4, y + 4))
+            curve_labels.append((x, y, col, f"{c[0]:g}"))
+    for k, (label, cur) in enumerate(colour_sets):
+        col = _PALETTE[k % len(_PALETTE)]
+        if not cur:
+            continue
+        xy = [(X(c[1]), Y(c[2])) for c in cur]
+        d = " ".join(f"{'M' if i == 0 else 'L'}{x:.1f},{y:.1f}" for i, (x, y) in enumerate(xy))
+        parts.append(f'<path d="{d}" fill="none" stroke="{col}" stroke-width="1.5"/>')
+        segments += [(*a, *b) for a, b in zip(xy, xy[1:])]
+        for c, (x, y) in zip(cur, xy):
+            parts.append(marker("circle", x, y, col))
             boxes.append((x - 4, y - 4, x + 4, y + 4))
             curve_labels.append((x, y, col, f"{c[0]:g}"))
     markers = []
@@ -376,7 +392,13 @@ def chart_svg(points, curve, *, metric: str = "relMSE", title: str = "",
         parts.append(f'<line x1="{lx}" y1="{y}" x2="{lx + 22}" y2="{y}" stroke="{col}" stroke-width="2"{da}/>')
         parts.append(marker(mk, lx + 11, y, col))
         parts.append(f'<text x="{lx + 28}" y="{y + 4}">{html.escape(label)}</text>')
-    ly += 18 * (len(sets) - 1)
+    for k, (label, _) in enumerate(colour_sets):
+        col = _PALETTE[k % len(_PALETTE)]
+        y = ly + 18 * (len(sets) + k)
+        parts.append(f'<line x1="{lx}" y1="{y}" x2="{lx + 22}" y2="{y}" stroke="{col}" stroke-width="1.5"/>')
+        parts.append(marker("circle", lx + 11, y, col))
+        parts.append(f'<text x="{lx + 28}" y="{y + 4}">{html.escape(label)}</text>')
+    ly += 18 * (len(sets) + len(colour_sets) - 1)
     for i, tech in enumerate(techs):
         y = ly + 18 * (i + 1)
         col = _PALETTE[i % len(_PALETTE)]
@@ -388,7 +410,8 @@ def chart_svg(points, curve, *, metric: str = "relMSE", title: str = "",
     return "\n".join(parts)
 
 
-def chart_png(points, curve, path: str, *, metric: str = "relMSE", title: str = "") -> str | None:
+def chart_png(points, curve, path: str, *, metric: str = "relMSE", title: str = "", series: dict | None = None,
+              xlabel: str = "time per render (ms, log scale)") -> str | None:
     """The same chart through matplotlib (Agg); returns the path, or None if matplotlib is
     not importable."""
     try:
@@ -408,6 +431,14 @@ def chart_png(points, curve, path: str, *, metric: str = "relMSE", title: str = 
         for c in cur:
             ax.annotate(f"{c[0]:g}", (c[1], c[2]), textcoords="offset points", xytext=(4, 4),
                         fontsize=7, color=col)
+    for k, (label, cur) in enumerate(_curve_sets(series, metric.lower()) if series else []):
+        col = _PALETTE[k % len(_PALETTE)]
+        if not cur:
+            continue
+        ax.plot([c[1] for c in cur], [c[2] for c in cur], "-o", color=col, ms=4, lw=1.5, label=label)
+        for c in cur:
+            ax.annotate(f"{c[0]:g}", (c[1], c[2]), textcoords="offset points", xytext=(4, 4),
+                        fontsize=7, color=col)
     techs = []
     for p in pts:
         if p["technique"] not in techs:
@@ -422,7 +453,7 @@ def chart_png(points, curve, path: str, *, metric: str = "relMSE", title: str = 
                         fontsize=8, color=col)
     ax.set_xscale("log")
     ax.set_yscale("log")
-    ax.set_xlabel("time per frame (ms, log scale)")
+    ax.set_xlabel(xlabel)
     ax.set_ylabel(f"{metric} (log scale)")
     ax.set_title(title or f"Cost vs accuracy ({metric} against the Cycles reference)", fontsize=11)
     ax.grid(True, which="major", color="#ddd")
@@ -433,13 +464,14 @@ def chart_png(points, curve, path: str, *, metric: str = "relMSE", title: str = 
     return path
 
 
-def write_chart(points, curve, path_base: str, *, metric: str = "relMSE", title: str = "") -> dict:
+def write_chart(points, curve, path_base: str, *, metric: str = "relMSE", title: str = "",
+                series: dict | None = None, xlabel: str = "time per render (ms, log scale)") -> dict:
     """Write ``path_base + '.svg'`` always and ``path_base + '.png'`` when matplotlib is
     importable. Returns {"svg": path, "png": path or None, "svg_text": str}."""
     d = os.path.dirname(os.path.abspath(path_base))
     os.makedirs(d, exist_ok=True)
-    svg = chart_svg(points, curve, metric=metric, title=title)
+    svg = chart_svg(points, curve, metric=metric, title=title, series=series, xlabel=xlabel)
     with open(path_base + ".svg", "w", encoding="utf-8") as f:
         f.write(svg)
-    png = chart_png(points, curve, path_base + ".png", metric=metric, title=title)
+    png = chart_png(points, curve, path_base + ".png", metric=metric, title=title, series=series, xlabel=xlabel)
     return {"svg": path_base + ".svg", "png": png, "svg_text": svg}

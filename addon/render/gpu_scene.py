@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import logging
+import time
 
 import numpy as np
 
@@ -304,6 +305,17 @@ class GPUScene:
 
     # ------------------------------------------------------------------ upload
     def update(self, scene: SceneData) -> dict:
+        """Bring the buffers up to ``scene`` (:meth:`_update`); the time of an update that
+        uploaded something is one-time work (``setup_ms``), that of the check alone is not."""
+        t0 = time.perf_counter()
+        bvh0 = self.setup_ms
+        changes = self._update(scene)
+        if any(changes.values()):
+            # BVH builds inside the update already added their own time
+            self.setup_ms = bvh0 + max((time.perf_counter() - t0) * 1e3, self.setup_ms - bvh0)
+        return changes
+
+    def _update(self, scene: SceneData) -> dict:
         """Bring the buffers up to ``scene``; returns which parts changed (the frame graph's
         scene-edit events, ``framegraph.SCENE_EDITS``): ``geometry`` (a mesh was added,
         removed or its vertex data changed, or instances were added/removed), ``transforms``

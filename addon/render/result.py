@@ -29,6 +29,8 @@ class RenderResult:
     frame_ms: mean time of one accumulated frame in milliseconds, completion to completion
               (frames overlap: the CPU records one while the GPU runs the previous), without
               one-time setup (shader compiles, BVH builds) that happened in a frame.
+    total_ms: the call's wall time, ~ setup_ms + prep_ms + warmup_ms + frame_ms x samples +
+              the read-back.
     """
 
     image: np.ndarray
@@ -44,7 +46,9 @@ class RenderResult:
     warnings: list[str] = field(default_factory=list)
     cancelled: bool = False
     setup_ms: float = 0.0  # one-time work of this call: upload, BVH, allocation, shader compiles
+    prep_ms: float = 0.0  # per-call work before the first frame: scene analysis, upload check, AUTO's plan
     warmup_frames: int = 0  # frames run (not accumulated) for the technique's state to converge
+    warmup_ms: float = 0.0  # wall time of those frames, to the last one's completion
     history_resets: list[str] = field(default_factory=list)  # passes whose history this call reset
     pass_order: list[str] = field(default_factory=list)  # the planned passes in execution order
     auto: dict = field(default_factory=dict)  # AUTO's plan: shares, chosen members, predictions (else empty)
@@ -60,4 +64,6 @@ class RenderResult:
     def stats_line(self) -> str:
         skipped = ", ".join(f"{s.name} ({s.reason})" for s in self.skipped_passes) or "none"
         return (f"GI Preview {self.technique} q{self.quality} | {self.samples} spp | "
-                f"{self.frame_ms:.1f} ms/frame | skipped: {skipped}")
+                f"{self.frame_ms:.1f} ms/frame"
+                + (f" | warm-up {self.warmup_frames} frames, {self.warmup_ms:.0f} ms" if self.warmup_frames else "")
+                + f" | skipped: {skipped}")

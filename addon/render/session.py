@@ -192,7 +192,9 @@ class Session:
         # the session's resources are shared by its graphs: a graph compiled earlier may find
         # them reallocated (another size) by another graph since, so switching graphs recompiles
         switched = graph is not self._last_graph
+        t_graph = time.perf_counter()
         graph.compile(self.rc, force=switched)
+        graph_ms = (time.perf_counter() - t_graph) * 1e3
         self._last_graph = graph
         plan = graph.plan(analysis.needed, analysis.reasons)
         cam = scene.camera
@@ -218,7 +220,15 @@ class Session:
         n_warm = 0
         if warmup if warmup is not None else (fresh and not keep_history):
             n_warm = max(int(getattr(tech, "warmup_frames", 0) or 0), graph.warmup_frames())
-        setup_ms = (time.perf_counter() - t_start) * 1e3
+        # before the first frame: one-time work (compiles, BVH builds, uploads of new data,
+        # allocation) is setup; the rest (scene analysis, the change check of the upload, AUTO's
+        # plan from its cached shares) is what every call pays, a viewport redraw included
+        # (the graph's allocation check counts as setup: it allocates on a first frame or a resize)
+        t_loop = time.perf_counter()
+        setup_ms = self._setup_clock() - setup0 + graph_ms
+        prep_ms = max(0.0, (t_loop - t_start) * 1e3 - setup_ms)
+        last_warm = None  # the last warm-up frame (its completion ends the warm-up)
+        warm_excluded_ms = 0.0
         pass_ms = {}
         sync = frame_sync.for_context(self.ctx)
         frames_acc = []  # the accumulated frames (frame_sync.Frame): their times
@@ -283,6 +293,8 @@ class Session:
             first_frame = False
             if is_warm:
                 warm_done += 1
+                last_warm = fr
+                warm_excluded_ms += in_frame_setup
                 if graph.converged(self.rc):
                     n_warm = warm_done  # measured: state settled early
             else:
@@ -308,6 +320,9 @@ class Session:
             fr.timers.drop()
         frame_times = frame_sync.frame_interval_ms(frames_acc, prev_frame) if frames_acc and all(
             f.done for f in frames_acc) else []
+        # the warm-up: from the end of the preparation to the last warm-up frame's completion
+        warmup_ms = (max(0.0, (last_warm.t_done - t_loop) * 1e3 - warm_excluded_ms)
+                     if last_warm is not None and last_warm.t_done is not None else 0.0)
         self.rc.barrier_external(list(self.acc_keys()))
         image = self._read(self.acc["Combined"])
         alpha_note = None
@@ -337,7 +352,8 @@ class Session:
             total_ms=(time.perf_counter() - t_start) * 1e3, effects=effects,
             skipped_passes=list(plan.skipped), warnings=warnings,
             cancelled=bool(cancel is not None and cancel.is_set()),
-            setup_ms=float(setup_ms), warmup_frames=int(warm_done), history_resets=list(reset),
+            setup_ms=float(setup_ms), prep_ms=float(prep_ms), warmup_frames=int(warm_done),
+            warmup_ms=float(warmup_ms), history_resets=list(reset),
             pass_order=graph.order, auto=plan_auto.as_dict() if plan_auto is not None else {})
 
     def _setup_clock(self) -> float:

@@ -159,6 +159,24 @@ def bind_tables(ctx, prog) -> None:
     u.value = BRDF_LUT_UNIT
 
 
+_DRIVER_CACHE_SALT: int | None = None
+
+
+def set_driver_cache_salt(salt: int | None):
+    """Add ``#define GI_DRIVER_CACHE_SALT salt`` to every program compiled from now on (None:
+    none). The driver's on-disk shader cache is keyed by the source, so a new salt makes every
+    compile a cold one, as on a first start after installing the add-on or a driver, whatever
+    this process or an earlier one compiled before. For measuring setup; renders are unchanged."""
+    global _DRIVER_CACHE_SALT
+    _DRIVER_CACHE_SALT = None if salt is None else int(salt)
+
+
+def _salted(defines: dict | None) -> dict | None:
+    if _DRIVER_CACHE_SALT is None:
+        return defines
+    return {**(defines or {}), "GI_DRIVER_CACHE_SALT": _DRIVER_CACHE_SALT}
+
+
 class ProgramCache:
     """Compiled programs of one GL context, keyed by (stages, defines). Compile once, reuse."""
 
@@ -173,6 +191,7 @@ class ProgramCache:
         return (tuple(sorted(stages.items())), tuple(sorted((defines or {}).items())))
 
     def compute(self, rel: str, defines: dict | None = None):
+        defines = _salted(defines)
         key = self._key({"comp": rel}, defines)
         prog = self._programs.get(key)
         if prog is None:
@@ -191,6 +210,7 @@ class ProgramCache:
                 geometry: str | None = None):
         """A raster program; ``geometry`` adds a geometry stage (layered rendering with
         ``gl_Layer``: cube maps, voxelisation)."""
+        defines = _salted(defines)
         key = self._key({"vert": vertex, "frag": fragment or "", "geom": geometry or ""}, defines)
         prog = self._programs.get(key)
         if prog is None:
