@@ -22,7 +22,7 @@ import json
 import os
 from dataclasses import dataclass, field
 
-from ..framegraph import Effect
+from ..framegraph import Effect, FrameGraph
 from . import Technique, get, register
 
 DEFAULT_MEMBERS = ("DIRECT", "SSDO", "SSR")
@@ -37,12 +37,31 @@ CANDIDATES = {
     "RTXGI": (("RTXGI",), "RTXGI", "probes"),
     "RTXGI_SSR": (("RTXGI_SSR",), "RTXGI", "probes+SSR"),
     "SVGF": (("SVGF",), "PT", "PT"),
+    # every other single technique, so that AUTO at a budget is never short of one that fits
+    "PT": (("PT",), "PT", "PT"),
+    "TAA": (("TAA",), "PT", "PT"),
+    "ATROUS": (("ATROUS",), "PT", "PT"),
+    "RESTIR_DI": (("RESTIR_DI",), None, None),
+    "RESTIR_GI+SVGF": (("RESTIR_GI+SVGF",), "RESTIR_GI", "RESTIR_GI"),
+    "SSAO": (("SSAO",), "AO", None),
+    "HBAO": (("HBAO",), "AO", None),
+    "RSM": (("RSM",), "RSM", None),
+    "LPV": (("LPV",), "LPV", None),
+    "VXGI": (("VXGI",), "VXGI", "VXGI"),
+    "IRRADIANCE_VOLUME": (("IRRADIANCE_VOLUME",), "IRRADIANCE_VOLUME", None),
 }
 BUNDLE = "DIRECT+SSDO+SSR"
 TABLE_PATH = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "auto_table.json")
 # effects with passes of their own that the threshold can skip, and the share that measures them
 SKIPPABLE = {Effect.INDIRECT_DIFFUSE: "indirect_diffuse", Effect.INDIRECT_SPECULAR: "indirect_glossy"}
 LABEL = {"indirect_diffuse": "indirect diffuse", "indirect_glossy": "indirect glossy"}
+
+
+def split_member(member: str) -> tuple[str, str]:
+    """A member is a technique id, or ``"ID+FILTER"``: that technique's graph ended by the
+    denoiser FILTER (RESTIR_GI+SVGF, as RESTIR_GI renders by default)."""
+    tid, _, den = member.partition("+")
+    return tid, (den or "NONE").upper()
 
 
 def merge_passes(groups: list[list]) -> list:
@@ -185,7 +204,14 @@ class Auto(Technique):
         self.members = self.chosen or DEFAULT_MEMBERS
 
     def _members(self):
-        return [get(t) for t in self.members if t != self.id]
+        return [get(split_member(t)[0]) for t in self.members if t != self.id]
+
+    @property
+    def graph_class(self):  # noqa: D401 - the first member's own graph type (RSM, LPV, VXGI gate on lights)
+        for m in self._members():
+            if m.graph_class is not FrameGraph:
+                return m.graph_class
+        return FrameGraph
 
     @property
     def warmup_frames(self):  # noqa: D401 - the longest warm-up of the members
@@ -196,8 +222,18 @@ class Auto(Technique):
         out = {}
         names = self.members if self.chosen else tuple(reversed(all_members()))
         for t in reversed(names):  # the first member's resource wins for a shared AOV name
-            out.update(get(t).outputs)
+            out.update(get(split_member(t)[0]).outputs)
         return out
 
     def passes(self, quality):
-        return merge_passes([m().passes(quality) for m in self._members()])
+        groups = []
+        for t in self.members:
+            if t == self.id:
+                continue
+            tid, den = split_member(t)
+            passes = get(tid)().passes(quality)
+            if den != "NONE":
+                from ..passes.filters import with_filters
+                passes = with_filters(passes, den, False, quality)
+            groups.append(passes)
+        return merge_passes(groups)
