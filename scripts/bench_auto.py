@@ -5,6 +5,7 @@ technique and Cycles full.
     /work/heavy .venv/bin/python scripts/bench_auto.py [--size 32] [--frames 8] [--spp 256] [--out out/bench/auto]
     /work/heavy .venv/bin/python scripts/bench_auto.py --out docs/results            # the docs' table
     /work/heavy .venv/bin/python scripts/bench_auto.py --auto-only --out DIR          # AUTO again, singles from DIR
+    /work/heavy .venv/bin/python scripts/bench_auto.py --md-only --out docs/results   # the md again from the json
 
 Per scene at ``--size`` px (the size of auto_table.json), quality 1, ``--frames`` accumulated
 frames: every single technique (``session.available_techniques()`` without AUTO; RESTIR_GI
@@ -140,6 +141,36 @@ def _pct(x) -> str:
     return f"{100.0 * float(x):.1f}"
 
 
+SINGLE_TO_CANDIDATE = {"SSDO": "DIRECT+SSDO", "SSR": "DIRECT+SSR", "RESTIR_GI": "RESTIR_GI+SVGF"}
+
+
+def diagnose(r: dict) -> list:
+    """Why AUTO missed on a scene, from its plan and the measurements: the class's error that did
+    not transfer, or the table's cost that kept the best technique out of the budget."""
+    from gi_preview.render.techniques import auto
+
+    au, bf, out = r["auto"], r["best_fitting"], []
+    table = auto.load_table() or {"scenes": {}}
+    cls = table["scenes"].get(au["scene_class"])
+    if cls is not None:
+        d = sum(abs(float(au["shares"].get(k, 0)) - float(v)) for k, v in cls["shares"].items())
+        out.append(f"Class {au['scene_class']} (L1 distance of the shares {d:.2f}).")
+    if au["relmse"] > 2.0 * au["predicted_relmse"]:
+        out.append(f"{au['candidate']} was predicted at relMSE {au['predicted_relmse']:.4f} (its error on the "
+                   f"class) and measured {au['relmse']:.4f} here: the class's errors do not transfer to this scene.")
+    cand = SINGLE_TO_CANDIDATE.get(bf["technique"], bf["technique"])
+    pred = au["considered"].get(cand)
+    if pred is not None and pred[1] > r["budget_ms"]:
+        out.append(f"The best fitting single technique, {bf['technique']} ({bf['relmse']:.4f}), took {bf['ms']:.0f} ms "
+                   f"in this run, but the table predicted {pred[1]:.0f} ms, over the {r['budget_ms']:.0f} ms budget: "
+                   "llvmpipe's times drift from run to run by more than the gap between the candidates' costs.")
+    if pred is not None and pred[1] <= r["budget_ms"] and pred[0] > au["predicted_relmse"]:
+        out.append(f"{bf['technique']} was predicted worse on the class ({pred[0]:.4f}).")
+    if not r["pass_direct"]:
+        out.append(f"AUTO's {au['relmse']:.4f} is above DIRECT's {r['direct_relmse']:.4f}.")
+    return out
+
+
 def write_md(path: Path, rows: list, a):
     L = ["# AUTO at the median single-technique time", "",
          f"Per scene, at {a.size} px, quality 1, {a.frames} accumulated frames: every single technique and "
@@ -160,6 +191,19 @@ def write_md(path: Path, rows: list, a):
                  f"{au['relmse']:.4f} | {au['ms']:.0f} ({'yes' if r['auto_fits_budget'] else 'no'}; "
                  f"predicted {au['predicted_ms']:.0f}) | {bf['technique']} ({bf['ms']:.0f} ms) | "
                  f"{bf['relmse']:.4f} | {r['direct_relmse']:.4f} | {res} |")
+    fails = [r for r in rows if not r["passed"]]
+    if fails:
+        L += ["", "## Why a cell fails", ""]
+        for r in fails:
+            L.append(f"- **{r['scene']}**: " + " ".join(diagnose(r)))
+    over = [r for r in rows if not r["auto_fits_budget"]]
+    if over:
+        L += ["", "## Where AUTO's measured time did not fit", ""]
+        for r in over:
+            au = r["auto"]
+            L.append(f"- **{r['scene']}**: {au['candidate']} predicted {au['predicted_ms']:.0f} ms (the table's time on "
+                     f"class {au['scene_class']}, scaled by pixel count), measured {au['ms']:.0f} ms against a "
+                     f"{r['budget_ms']:.0f} ms budget; DIRECT took {r['singles']['DIRECT']['ms']:.0f} ms here.")
     L += ["", "## Per scene", ""]
     for r in rows:
         au = r["auto"]
@@ -203,8 +247,13 @@ def main():
     ap.add_argument("--auto-only", action="store_true",
                     help="render AUTO only; the single techniques from --out's auto_acceptance.json")
     ap.add_argument("--cycles-shares-again", action="store_true")
+    ap.add_argument("--md-only", action="store_true", help="rewrite the md from --out's json, render nothing")
     a = ap.parse_args()
     out = Path(a.out)
+    if a.md_only:
+        j = json.loads((out / "auto_acceptance.json").read_text())
+        write_md(out / "auto_acceptance.md", j["rows"], a)
+        return
     out.mkdir(parents=True, exist_ok=True)
     jpath = out / "auto_acceptance.json"
     previous = None

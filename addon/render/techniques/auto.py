@@ -5,8 +5,8 @@ For each render (cached per scene version and camera, ``render/effect_shares.py`
 measures every effect's share of what the camera sees with a small path-traced image. An
 indirect effect below ``threshold`` (default 1 %) is skipped, with the number in the
 planner's reason ("indirect glossy: 0.3 % of the image -> skipped"). The remaining effects
-choose among the candidates of ``CANDIDATES``: each is a list of member techniques merged
-by pass name (``merge_passes``: the G-buffer, shadows and direct light run once; RTXGI_SSR
+choose among the candidates of ``CANDIDATES`` (every single technique, RESTIR_GI with its
+default SVGF, and compositions): each is a list of member techniques merged by pass name (``merge_passes``: the G-buffer, shadows and direct light run once; RTXGI_SSR
 is RTXGI with SSR's passes using the probes as miss fallback). ``auto_table.json``
 (written by ``scripts/sweep_auto.py``) holds, per demo scene, its measured shares and each
 candidate's relMSE against Cycles full and ms/frame on llvmpipe. The scene's class is the
@@ -193,8 +193,8 @@ def all_members() -> tuple:
 class Auto(Technique):
     id = "AUTO"
     label = "Auto"
-    description = ("Measures each effect's share of the image and runs, per effect, the most accurate "
-                   "technique that fits the frame budget (measured table: SSDO, DDGI, RTXGI, SSR, SVGF)")
+    description = ("Measures each effect's share of the image and runs the most accurate technique or "
+                   "composition (e.g. DDGI + SSR) that fits the frame budget, from a measured table")
     family = "auto"
     reference = "full"
     cost_rank = 50
