@@ -172,3 +172,19 @@ def test_budget_on_a_scene_outside_the_table_fits_and_beats_direct():
         assert e_auto < e_direct, (res.auto["candidate"], e_auto, e_direct)
     finally:
         bpy.data.scenes.remove(sc)
+
+
+def test_budget_floor_runs_direct_when_everything_that_fits_is_worse():
+    """A table where the only candidate under the budget is predicted worse than DIRECT and
+    DIRECT is predicted 10 % over: AUTO runs DIRECT (within DIRECT_SLACK), says so in its
+    notes; at a budget DIRECT misses by more, the cheap candidate; a better one that fits wins."""
+    shares = {"direct": 0.9, "indirect_diffuse": 0.05, "indirect_glossy": 0.05}
+    table = {"width": 32, "height": 32, "scenes": {"s": {"shares": shares}},
+             "rows": [{"scene": "s", "candidate": "DIRECT", "relmse": 0.05, "ms": 110.0},
+                      {"scene": "s", "candidate": "RESTIR_DI", "relmse": 0.06, "ms": 20.0},
+                      {"scene": "s", "candidate": "RTXGI", "relmse": 0.02, "ms": 300.0}]}
+    p = auto.choose(shares, table, 32, 32, budget_ms=100.0)
+    assert p.candidate == "DIRECT" and any("worse than DIRECT" in n for n in p.notes), p.notes
+    assert auto.choose(shares, table, 32, 32, budget_ms=100.0 / auto.DIRECT_SLACK).candidate == "RESTIR_DI"
+    assert auto.choose(shares, table, 32, 32, budget_ms=300.0).candidate == "RTXGI"
+    assert auto.choose(shares, table, 32, 32, budget_ms=0.0).candidate == "RTXGI"

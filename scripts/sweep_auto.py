@@ -3,6 +3,7 @@
 
     /work/heavy .venv/bin/python scripts/sweep_auto.py [--size 32] [--frames 8] [--spp 256] [--repeats 3] [--out addon/render/auto_table.json]
     .venv/bin/python scripts/sweep_auto.py --compare   # fixed bundle vs AUTO's choice on scenes outside the table
+    .venv/bin/python scripts/sweep_auto.py --loo       # leave-one-out check of AUTO's choice on the table
 
 Writes ``addon/render/auto_table.json`` (the table AUTO reads). ms/frame: per render the mean
 interval of the accumulated frames (``RenderResult.frame_ms``, Mesa llvmpipe here), the median
@@ -73,7 +74,11 @@ def main():
     ap.add_argument("--out", default=str(REPO / "addon" / "render" / "auto_table.json"))
     ap.add_argument("--compare", action="store_true",
                     help="fixed bundle vs AUTO's choice on scenes outside the table (scenes_probes, scenes_screen_space)")
+    ap.add_argument("--loo", action="store_true",
+                    help="leave-one-out: each table scene judged by AUTO's choice from the other scenes' rows")
     a = ap.parse_args()
+    if a.loo:
+        return loo(auto.load_table(a.out))
     if a.compare:
         return compare(a)
     table = {"width": a.size, "height": a.size, "frames": a.frames, "quality": a.quality, "reference": "full",
@@ -94,6 +99,30 @@ def main():
         with open(a.out, "w", encoding="utf-8") as f:
             json.dump(table, f, indent=1)
     print("wrote", a.out)
+
+
+def loo(table, factor: float = 1.25) -> int:
+    """Each table scene left out in turn: AUTO chooses from the other scenes' rows at a budget
+    equal to the median ms/frame of the left-out scene's single techniques; judged by the
+    left-out scene's own rows (within ``factor`` of the best single technique that fits, not
+    worse than DIRECT). Prints one line per scene; returns how many pass."""
+    passed = 0
+    for name, row in table["scenes"].items():
+        rest = {**table, "scenes": {k: v for k, v in table["scenes"].items() if k != name},
+                "rows": [r for r in table["rows"] if r["scene"] != name]}
+        own = {r["candidate"]: (r["relmse"], r["ms"]) for r in table["rows"] if r["scene"] == name}
+        singles = {c: v for c, v in own.items() if c not in auto.COMPOSITIONS}
+        budget = statistics.median(v[1] for v in singles.values())
+        fit = {c: v for c, v in singles.items() if v[1] <= budget}
+        best = min(fit, key=lambda c: fit[c][0])
+        plan = auto.choose(row["shares"], rest, table["width"], table["height"], budget_ms=budget)
+        e = own[plan.candidate][0]
+        ok = e <= factor * fit[best][0] and e <= own["DIRECT"][0]
+        passed += ok
+        print(f"{name:15s} class {plan.scene_class:15s} budget {budget:6.1f} ms: {plan.candidate:16s} {e:.4f} "
+              f"| best fitting {best} {fit[best][0]:.4f} | DIRECT {own['DIRECT'][0]:.4f} | {'pass' if ok else 'FAIL'}")
+    print(f"{passed} of {len(table['scenes'])} pass")
+    return passed
 
 
 def compare(a):

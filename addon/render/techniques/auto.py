@@ -12,8 +12,9 @@ is RTXGI with SSR's passes using the probes as miss fallback). ``auto_table.json
 candidate's relMSE against Cycles full and ms/frame on llvmpipe. The scene's class is the
 demo scene nearest in shares (L1); the candidate's predicted error is the table's relMSE
 on that class, its predicted cost the table's ms scaled by pixel count. AUTO takes the most
-accurate candidate whose predicted cost fits the frame budget (0 = unlimited); with a target
-error, the cheapest one predicted to reach it. Without a table AUTO runs the bundle
+accurate candidate whose predicted cost fits the frame budget (0 = unlimited), or DIRECT when
+every one that fits is predicted worse than DIRECT and DIRECT's cost is within
+``DIRECT_SLACK`` of the budget; with a target error, the cheapest one predicted to reach it. Without a table AUTO runs the bundle
 DIRECT + SSDO + SSR (``DEFAULT_MEMBERS``).
 """
 from __future__ import annotations
@@ -51,6 +52,11 @@ CANDIDATES = {
     "IRRADIANCE_VOLUME": (("IRRADIANCE_VOLUME",), "IRRADIANCE_VOLUME", None),
 }
 BUNDLE = "DIRECT+SSDO+SSR"
+COMPOSITIONS = ("DIRECT+SSDO+SSR", "DDGI+SSR")  # the candidates that are not one technique's own graph
+# A budget's floor: when every candidate predicted to fit is predicted worse than DIRECT, AUTO
+# runs DIRECT if its predicted cost is within this factor of the budget (llvmpipe's ms/frame
+# drift by 10-30 % from run to run, more than the gap between candidates of similar cost).
+DIRECT_SLACK = 1.25
 TABLE_PATH = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "auto_table.json")
 # effects with passes of their own that the threshold can skip, and the share that measures them
 SKIPPABLE = {Effect.INDIRECT_DIFFUSE: "indirect_diffuse", Effect.INDIRECT_SPECULAR: "indirect_glossy"}
@@ -174,6 +180,11 @@ def choose(shares: dict, table: dict | None, width: int, height: int, *, budget_
         pick = min((c for c in fits if fits[c][0] <= target_error), key=lambda c: fits[c][1])
     else:
         pick = min(fits, key=lambda c: (fits[c][0], fits[c][1]))
+        d = cands.get("DIRECT")
+        if budget > 0.0 and d is not None and cands[pick][0] > d[0] and d[1] <= DIRECT_SLACK * budget:
+            plan.notes.append(f"every candidate predicted to fit is predicted worse than DIRECT ({d[0]:.4f}); "
+                              f"DIRECT, predicted {d[1]:.0f} ms, is within {DIRECT_SLACK:g}x the budget")
+            pick = "DIRECT"
     plan.candidate = pick
     plan.members = CANDIDATES[pick][0]
     plan.predicted_relmse, plan.predicted_ms = cands[pick]
