@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from gi_preview.blender import demo_scenes, reference
+from gi_preview.compare import metrics
 from gi_preview.render import effect_shares, session
 from gi_preview.render.gl import get_gl
 from gi_preview.render.techniques import auto
@@ -125,3 +126,65 @@ def test_budget_settings_shown_only_for_auto():
         assert properties.auto_options(s, "SSDO") == {}
     finally:
         bpy.data.scenes.remove(sc)
+
+
+def test_every_single_technique_is_a_candidate_and_restir_gi_keeps_its_filter():
+    """AUTO can choose any single technique (a budget never lacks one that fits); RESTIR_GI is
+    composed with its default SVGF, exactly the graph RESTIR_GI renders with by default; RSM,
+    LPV and VXGI keep their own graph type (they gate on shadow-casting lights)."""
+    from gi_preview.render import techniques
+
+    ids = {t.id for t in techniques.available()} - {"AUTO"}
+    covered = {auto.split_member(m)[0] for members, _d, _g in auto.CANDIDATES.values() for m in members}
+    assert ids <= covered, ids - covered
+    rg = auto.Auto(auto.CANDIDATES["RESTIR_GI+SVGF"][0])
+    want = techniques.get("RESTIR_GI")().build(1, techniques.resolve_denoiser("RESTIR_GI", "AUTO"))
+    assert [p.name for p in rg.passes(1)] == [p.name for p in want.passes]
+    assert any(p.name.startswith("svgf") for p in rg.passes(1))
+    for t in ("RSM", "LPV", "VXGI"):
+        assert auto.Auto((t,)).graph_class is techniques.get(t).graph_class
+    assert auto.Auto(("DIRECT", "SSR")).graph_class is techniques.get("DIRECT").graph_class
+
+
+def test_budget_on_a_scene_outside_the_table_fits_and_beats_direct():
+    """A closed room lit around a corner (not in the table; most of what the camera sees is
+    indirect): at a budget equal to the median predicted cost of the candidates AUTO picks one
+    predicted to fit, renders it within 3x the budget (llvmpipe times are noisy), and is better
+    than DIRECT against Cycles full."""
+    import statistics
+
+    import scenes_auto
+
+    sc = scenes_auto.build("around_corner", SIZE)
+    try:
+        sd = _export(sc)
+        ref = reference.get_reference(sc, "full", 64).image
+        key = "auto_new_scene"
+        free = session.render(sd, "AUTO", 1, 1, session=key, auto={"budget_ms": 0.0})
+        budget = statistics.median(v[1] for v in free.auto["considered"].values())
+        res = session.render(sd, "AUTO", 1, 4, session=key, auto={"budget_ms": budget})
+        direct = session.render(sd, "DIRECT", 1, 4, session=key)
+        session.release_session(key)
+        assert res.auto["scene_class"] in auto.load_table()["scenes"]
+        assert res.auto["predicted_ms"] <= budget
+        assert res.frame_ms <= 3.0 * budget, (res.auto["candidate"], res.frame_ms, budget)
+        e_auto, e_direct = metrics.relmse(res.image, ref), metrics.relmse(direct.image, ref)
+        assert e_auto < e_direct, (res.auto["candidate"], e_auto, e_direct)
+    finally:
+        bpy.data.scenes.remove(sc)
+
+
+def test_budget_floor_runs_direct_when_everything_that_fits_is_worse():
+    """A table where the only candidate under the budget is predicted worse than DIRECT and
+    DIRECT is predicted 10 % over: AUTO runs DIRECT (within DIRECT_SLACK), says so in its
+    notes; at a budget DIRECT misses by more, the cheap candidate; a better one that fits wins."""
+    shares = {"direct": 0.9, "indirect_diffuse": 0.05, "indirect_glossy": 0.05}
+    table = {"width": 32, "height": 32, "scenes": {"s": {"shares": shares}},
+             "rows": [{"scene": "s", "candidate": "DIRECT", "relmse": 0.05, "ms": 110.0},
+                      {"scene": "s", "candidate": "RESTIR_DI", "relmse": 0.06, "ms": 20.0},
+                      {"scene": "s", "candidate": "RTXGI", "relmse": 0.02, "ms": 300.0}]}
+    p = auto.choose(shares, table, 32, 32, budget_ms=100.0)
+    assert p.candidate == "DIRECT" and any("worse than DIRECT" in n for n in p.notes), p.notes
+    assert auto.choose(shares, table, 32, 32, budget_ms=100.0 / auto.DIRECT_SLACK).candidate == "RESTIR_DI"
+    assert auto.choose(shares, table, 32, 32, budget_ms=300.0).candidate == "RTXGI"
+    assert auto.choose(shares, table, 32, 32, budget_ms=0.0).candidate == "RTXGI"

@@ -5,15 +5,16 @@ For each render (cached per scene version and camera, ``render/effect_shares.py`
 measures every effect's share of what the camera sees with a small path-traced image. An
 indirect effect below ``threshold`` (default 1 %) is skipped, with the number in the
 planner's reason ("indirect glossy: 0.3 % of the image -> skipped"). The remaining effects
-choose among the candidates of ``CANDIDATES``: each is a list of member techniques merged
-by pass name (``merge_passes``: the G-buffer, shadows and direct light run once; RTXGI_SSR
+choose among the candidates of ``CANDIDATES`` (every single technique, RESTIR_GI with its
+default SVGF, and compositions): each is a list of member techniques merged by pass name (``merge_passes``: the G-buffer, shadows and direct light run once; RTXGI_SSR
 is RTXGI with SSR's passes using the probes as miss fallback). ``auto_table.json``
 (written by ``scripts/sweep_auto.py``) holds, per demo scene, its measured shares and each
 candidate's relMSE against Cycles full and ms/frame on llvmpipe. The scene's class is the
 demo scene nearest in shares (L1); the candidate's predicted error is the table's relMSE
 on that class, its predicted cost the table's ms scaled by pixel count. AUTO takes the most
-accurate candidate whose predicted cost fits the frame budget (0 = unlimited); with a target
-error, the cheapest one predicted to reach it. Without a table AUTO runs the bundle
+accurate candidate whose predicted cost fits the frame budget (0 = unlimited), or DIRECT when
+every one that fits is predicted worse than DIRECT and DIRECT's cost is within
+``DIRECT_SLACK`` of the budget; with a target error, the cheapest one predicted to reach it. Without a table AUTO runs the bundle
 DIRECT + SSDO + SSR (``DEFAULT_MEMBERS``).
 """
 from __future__ import annotations
@@ -22,7 +23,7 @@ import json
 import os
 from dataclasses import dataclass, field
 
-from ..framegraph import Effect
+from ..framegraph import Effect, FrameGraph
 from . import Technique, get, register
 
 DEFAULT_MEMBERS = ("DIRECT", "SSDO", "SSR")
@@ -37,12 +38,36 @@ CANDIDATES = {
     "RTXGI": (("RTXGI",), "RTXGI", "probes"),
     "RTXGI_SSR": (("RTXGI_SSR",), "RTXGI", "probes+SSR"),
     "SVGF": (("SVGF",), "PT", "PT"),
+    # every other single technique, so that AUTO at a budget is never short of one that fits
+    "PT": (("PT",), "PT", "PT"),
+    "TAA": (("TAA",), "PT", "PT"),
+    "ATROUS": (("ATROUS",), "PT", "PT"),
+    "RESTIR_DI": (("RESTIR_DI",), None, None),
+    "RESTIR_GI+SVGF": (("RESTIR_GI+SVGF",), "RESTIR_GI", "RESTIR_GI"),
+    "SSAO": (("SSAO",), "AO", None),
+    "HBAO": (("HBAO",), "AO", None),
+    "RSM": (("RSM",), "RSM", None),
+    "LPV": (("LPV",), "LPV", None),
+    "VXGI": (("VXGI",), "VXGI", "VXGI"),
+    "IRRADIANCE_VOLUME": (("IRRADIANCE_VOLUME",), "IRRADIANCE_VOLUME", None),
 }
 BUNDLE = "DIRECT+SSDO+SSR"
+COMPOSITIONS = ("DIRECT+SSDO+SSR", "DDGI+SSR")  # the candidates that are not one technique's own graph
+# A budget's floor: when every candidate predicted to fit is predicted worse than DIRECT, AUTO
+# runs DIRECT if its predicted cost is within this factor of the budget (llvmpipe's ms/frame
+# drift by 10-30 % from run to run, more than the gap between candidates of similar cost).
+DIRECT_SLACK = 1.25
 TABLE_PATH = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "auto_table.json")
 # effects with passes of their own that the threshold can skip, and the share that measures them
 SKIPPABLE = {Effect.INDIRECT_DIFFUSE: "indirect_diffuse", Effect.INDIRECT_SPECULAR: "indirect_glossy"}
 LABEL = {"indirect_diffuse": "indirect diffuse", "indirect_glossy": "indirect glossy"}
+
+
+def split_member(member: str) -> tuple[str, str]:
+    """A member is a technique id, or ``"ID+FILTER"``: that technique's graph ended by the
+    denoiser FILTER (RESTIR_GI+SVGF, as RESTIR_GI renders by default)."""
+    tid, _, den = member.partition("+")
+    return tid, (den or "NONE").upper()
 
 
 def merge_passes(groups: list[list]) -> list:
@@ -155,6 +180,11 @@ def choose(shares: dict, table: dict | None, width: int, height: int, *, budget_
         pick = min((c for c in fits if fits[c][0] <= target_error), key=lambda c: fits[c][1])
     else:
         pick = min(fits, key=lambda c: (fits[c][0], fits[c][1]))
+        d = cands.get("DIRECT")
+        if budget > 0.0 and d is not None and cands[pick][0] > d[0] and d[1] <= DIRECT_SLACK * budget:
+            plan.notes.append(f"every candidate predicted to fit is predicted worse than DIRECT ({d[0]:.4f}); "
+                              f"DIRECT, predicted {d[1]:.0f} ms, is within {DIRECT_SLACK:g}x the budget")
+            pick = "DIRECT"
     plan.candidate = pick
     plan.members = CANDIDATES[pick][0]
     plan.predicted_relmse, plan.predicted_ms = cands[pick]
@@ -174,8 +204,8 @@ def all_members() -> tuple:
 class Auto(Technique):
     id = "AUTO"
     label = "Auto"
-    description = ("Measures each effect's share of the image and runs, per effect, the most accurate "
-                   "technique that fits the frame budget (measured table: SSDO, DDGI, RTXGI, SSR, SVGF)")
+    description = ("Measures each effect's share of the image and runs the most accurate technique or "
+                   "composition (e.g. DDGI + SSR) that fits the frame budget, from a measured table")
     family = "auto"
     reference = "full"
     cost_rank = 50
@@ -185,7 +215,14 @@ class Auto(Technique):
         self.members = self.chosen or DEFAULT_MEMBERS
 
     def _members(self):
-        return [get(t) for t in self.members if t != self.id]
+        return [get(split_member(t)[0]) for t in self.members if t != self.id]
+
+    @property
+    def graph_class(self):  # noqa: D401 - the first member's own graph type (RSM, LPV, VXGI gate on lights)
+        for m in self._members():
+            if m.graph_class is not FrameGraph:
+                return m.graph_class
+        return FrameGraph
 
     @property
     def warmup_frames(self):  # noqa: D401 - the longest warm-up of the members
@@ -196,8 +233,18 @@ class Auto(Technique):
         out = {}
         names = self.members if self.chosen else tuple(reversed(all_members()))
         for t in reversed(names):  # the first member's resource wins for a shared AOV name
-            out.update(get(t).outputs)
+            out.update(get(split_member(t)[0]).outputs)
         return out
 
     def passes(self, quality):
-        return merge_passes([m().passes(quality) for m in self._members()])
+        groups = []
+        for t in self.members:
+            if t == self.id:
+                continue
+            tid, den = split_member(t)
+            passes = get(tid)().passes(quality)
+            if den != "NONE":
+                from ..passes.filters import with_filters
+                passes = with_filters(passes, den, False, quality)
+            groups.append(passes)
+        return merge_passes(groups)
