@@ -46,7 +46,7 @@ import scenes_probes
 
 SCENES = ("thin_wall", "mirror", "glass", "furnace", "camera_inside", "emissive_only", "many_lights",
           "tiny_scale", "huge_scale", "hdri_sun", "animated", "degenerate", "z_fighting", "black",
-          "bright_light", "mirrored_instances", "missing_texture")
+          "bright_light", "mirrored_instances", "missing_texture", "million_triangles")
 
 ANIMATED_FRAMES = (1, 2, 3, 4)
 # objects (name prefixes) hidden from Cycles for a scene's reference (see z_fighting)
@@ -374,11 +374,19 @@ def _missing_texture(b, mp, mw):
     b.scene.world = mw(b.n("world"), (0.03, 0.03, 0.04), 1.0)
 
 
+def _million_triangles(b, mp, mw):
+    """The lit room around a sphere of about a million triangles (1000 x 500 segments)."""
+    _lit_room(b, mp, mw)
+    grey = mp(b.n("dense"), (0.6, 0.6, 0.55), 0.4)
+    b.sphere("dense", 0.45, grey, location=(-0.6, -0.2, 0.45), segments=1000, rings=500)
+
+
 _BUILD = {"thin_wall": _thin_wall, "mirror": _mirror, "glass": _glass, "furnace": _furnace,
           "camera_inside": _camera_inside, "emissive_only": _emissive_only, "many_lights": _many_lights,
           "tiny_scale": _tiny_scale, "huge_scale": _huge_scale, "hdri_sun": _hdri_sun, "animated": _animated,
           "degenerate": _degenerate, "z_fighting": _z_fighting, "black": _black, "bright_light": _bright_light,
-          "mirrored_instances": _mirrored_instances, "missing_texture": _missing_texture}
+          "mirrored_instances": _mirrored_instances, "missing_texture": _missing_texture,
+          "million_triangles": _million_triangles}
 
 
 def render_reference(sc, name: str, spp: int, kind: str):

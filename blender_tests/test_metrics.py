@@ -245,7 +245,8 @@ def test_report_speedup_table_per_baseline():
           "eevee": {"speedup": 0.5, "cycles_spp": 2.0, "reason": "interpolated"}}
     results = {"reference": {"kind": "full", "spp": 64},
                "entries": [{"technique": "SSDO", "quality": 1, "reference": "full", "time_ms": 5.0,
-                            "setup_ms": 1234.0, "relmse": 0.1, "speedup": sp["cycles"], "speedups": sp}],
+                            "setup_ms": 1234.0, "setup_warm_ms": 56.0, "relmse": 0.1, "speedup": sp["cycles"],
+                            "speedups": sp}],
                "baselines": {"cycles": [{"spp": 1, "time_ms": 1.0, "wall_ms": 2.0, "relmse": 0.5}],
                              "cycles_denoised": [{"spp": 1, "time_ms": 3.0, "wall_ms": 4.0, "relmse": 0.05}],
                              "eevee": [{"spp": 1, "time_ms": 5.0, "wall_ms": 9.0, "relmse": 0.2}]},
@@ -255,5 +256,5 @@ def test_report_speedup_table_per_baseline():
     for label in ("vs Cycles<", "vs Cycles + OpenImageDenoise", "vs EEVEE (ray tracing)"):
         assert label in h, label
     assert "2&times;" in h and "0.5&times;" in h and "&le;&thinsp;0.75&times;" in h
-    assert ">1234<" in h  # the setup column
+    assert ">1234 / 56<" in h  # the setup column: cold / warm
     assert "first render +30000 ms" in h

@@ -170,6 +170,7 @@ SCENE_NOTES = {
     "bright_light": "a zero-size lamp and a 1e6 W lamp far away",
     "mirrored_instances": "negative-scale (mirrored) copies of a box and a sphere",
     "missing_texture": "an Image Texture whose file does not exist (Cycles: magenta)",
+    "million_triangles": "a lit room around a sphere of a million triangles",
 }
 
 
