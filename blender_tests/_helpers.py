@@ -28,3 +28,19 @@ def dump_exr(folder: Path, name: str, **images) -> None:
 def mean_ratio(img, ref) -> float:
     """Mean of ``img``'s RGB over the mean of ``ref``'s."""
     return float(img[..., :3].mean() / max(ref[..., :3].mean(), 1e-12))
+
+
+def build_named_scene(builders: dict, name: str, resolution: int, prefix: str, what: str):
+    """A new scene ``<prefix>_<name>`` at ``resolution``² built by ``builders[name](builder,
+    make_principled, make_world)`` with the demo scenes' builder (the caller removes it)."""
+    import bpy
+
+    from gi_preview.blender import demo_scenes
+
+    if name not in builders:
+        raise ValueError(f"unknown {what} {name!r}; choose one of {', '.join(builders)}")
+    sc = bpy.data.scenes.new(f"{prefix}_{name}")
+    sc.render.resolution_x = sc.render.resolution_y = int(resolution)
+    sc.render.resolution_percentage = 100
+    builders[name](demo_scenes._Builder(sc, f"{prefix}_{name}"), demo_scenes.make_principled, demo_scenes.make_world)
+    return sc

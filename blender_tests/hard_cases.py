@@ -43,6 +43,7 @@ import bpy
 import numpy as np
 
 import scenes_probes
+from _helpers import build_named_scene
 
 SCENES = ("thin_wall", "mirror", "glass", "furnace", "camera_inside", "emissive_only", "many_lights",
           "tiny_scale", "huge_scale", "hdri_sun", "animated", "degenerate", "z_fighting", "black",
@@ -126,11 +127,6 @@ def _techniques():
 
 
 # ------------------------------------------------------------------ scenes
-def _helpers():
-    from gi_preview.blender import demo_scenes
-    return demo_scenes._Builder, demo_scenes.make_principled, demo_scenes.make_world
-
-
 def _lit_room(b, mp, mw):
     """A room open towards the camera: floor, back and side walls, a box, a lamp."""
     white = mp(b.n("white"), (0.8, 0.8, 0.8), 1.0, specular=0.0)
@@ -405,11 +401,4 @@ def render_reference(sc, name: str, spp: int, kind: str):
 
 def build(name: str, resolution: int = 40) -> bpy.types.Scene:
     """A new scene ``hard_<name>`` at ``resolution``² (the caller removes it)."""
-    if name not in _BUILD:
-        raise ValueError(f"unknown hard case {name!r}; choose one of {', '.join(SCENES)}")
-    Builder, mp, mw = _helpers()
-    sc = bpy.data.scenes.new(f"hard_{name}")
-    sc.render.resolution_x = sc.render.resolution_y = int(resolution)
-    sc.render.resolution_percentage = 100
-    _BUILD[name](Builder(sc, f"hard_{name}"), mp, mw)
-    return sc
+    return build_named_scene(_BUILD, name, resolution, "hard", "hard case")

@@ -25,12 +25,9 @@ import math
 import bpy
 import numpy as np
 
+from _helpers import build_named_scene
+
 SCENES = ("metal_corridor", "around_corner", "party_room")
-
-
-def _helpers():
-    from gi_preview.blender import demo_scenes
-    return demo_scenes._Builder, demo_scenes.make_principled, demo_scenes.make_world
 
 
 def _metal_corridor(b, mp, mw):
@@ -122,11 +119,4 @@ _BUILD = {"metal_corridor": _metal_corridor, "around_corner": _around_corner, "p
 
 def build(name: str, resolution: int = 32) -> bpy.types.Scene:
     """A new scene ``auto_<name>`` at ``resolution``² (the caller removes it)."""
-    if name not in _BUILD:
-        raise ValueError(f"unknown AUTO scene {name!r}; choose one of {', '.join(SCENES)}")
-    Builder, mp, mw = _helpers()
-    sc = bpy.data.scenes.new(f"auto_{name}")
-    sc.render.resolution_x = sc.render.resolution_y = int(resolution)
-    sc.render.resolution_percentage = 100
-    _BUILD[name](Builder(sc, f"auto_{name}"), mp, mw)
-    return sc
+    return build_named_scene(_BUILD, name, resolution, "auto", "AUTO scene")

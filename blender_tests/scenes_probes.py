@@ -33,12 +33,9 @@ from __future__ import annotations
 
 import bpy
 
+from _helpers import build_named_scene
+
 SCENES = ("white_room", "furnace", "furnace_room", "two_rooms", "probe_in_box", "glossy_room", "doorway")
-
-
-def _helpers():
-    from gi_preview.blender import demo_scenes
-    return demo_scenes._Builder, demo_scenes.make_principled, demo_scenes.make_world
 
 
 def _white_room(b, mp, mw):
@@ -117,11 +114,4 @@ _BUILD = {"white_room": _white_room, "furnace": _furnace, "furnace_room": _furna
 
 def build(name: str, resolution: int = 48) -> bpy.types.Scene:
     """A new scene ``probes_<name>`` at ``resolution``² (the caller removes it)."""
-    if name not in _BUILD:
-        raise ValueError(f"unknown probe scene {name!r}; choose one of {', '.join(SCENES)}")
-    Builder, mp, mw = _helpers()
-    sc = bpy.data.scenes.new(f"probes_{name}")
-    sc.render.resolution_x = sc.render.resolution_y = int(resolution)
-    sc.render.resolution_percentage = 100
-    _BUILD[name](Builder(sc, f"probes_{name}"), mp, mw)
-    return sc
+    return build_named_scene(_BUILD, name, resolution, "probes", "probe scene")

@@ -24,12 +24,9 @@ import math
 import bpy
 import numpy as np
 
+from _helpers import build_named_scene
+
 SCENES = ("corridor", "bounce_room", "mirror_gradient")
-
-
-def _helpers():
-    from gi_preview.blender import demo_scenes
-    return demo_scenes._Builder, demo_scenes.make_principled, demo_scenes.make_world
 
 
 def _corridor(b, mp, mw):
@@ -81,14 +78,7 @@ _BUILDERS = {"corridor": _corridor, "bounce_room": _bounce_room, "mirror_gradien
 
 def build(name: str, resolution: int = 64) -> bpy.types.Scene:
     """A new scene ``ss_<name>`` at ``resolution``² (the caller removes it)."""
-    if name not in _BUILDERS:
-        raise ValueError(f"unknown screen-space test scene {name!r}; expected one of {SCENES}")
-    Builder, mp, mw = _helpers()
-    sc = bpy.data.scenes.new(f"ss_{name}")
-    sc.render.resolution_x = sc.render.resolution_y = int(resolution)
-    sc.render.resolution_percentage = 100
-    _BUILDERS[name](Builder(sc, f"ss_{name}"), mp, mw)
-    return sc
+    return build_named_scene(_BUILDERS, name, resolution, "ss", "screen-space test scene")
 
 
 # surfaces per scene, by material-name suffix
