@@ -112,7 +112,9 @@ class Res:
     this frame, ``name@prev`` holds last frame's). ``managed=False``: the pass allocates the
     object itself (sizes only it knows); the graph still orders, barriers and validates it.
     ``check``: what GI_PREVIEW_VALIDATE asserts: ``radiance`` (finite, >= 0), ``finite``, or
-    ``none``. ``clear``: value the graph clears a history resource to on reset."""
+    ``none``. ``clear``: value the graph clears a history resource to on reset. ``tile``: a
+    texture of ``per_tile`` texels per side for every ``tile`` x ``tile`` pixel tile of the
+    frame (screen probes: one texel per probe, or a probe's ray texels)."""
 
     name: str
     kind: str = TEX2D
@@ -126,8 +128,13 @@ class Res:
     managed: bool = True
     check: str = "finite"
     clear: tuple = (0.0, 0.0, 0.0, 0.0)
+    tile: int = 0
+    per_tile: int = 1
 
     def resolve_size(self, frame_size, props: dict):
+        if self.tile > 0:
+            t = int(self.tile)
+            return tuple(-(-int(x) // t) * int(self.per_tile) for x in frame_size[:2])
         if self.size is not None:
             return tuple(self.size) if not isinstance(self.size, int) else int(self.size)
         s = props[self.scale] if isinstance(self.scale, str) else self.scale

@@ -18,6 +18,7 @@
 #include "lib/lights.glsl"
 #include "lib/scene_rt.glsl"
 #include "lib/albedo.glsl"
+#include "lib/bounce.glsl"
 #define PROBE_LOOKUP 1
 #include "probes/common.glsl"
 
@@ -26,7 +27,6 @@ layout(binding = 0, rgba32f) uniform writeonly image2D o_rays;
 
 uniform uint u_seed;
 uniform int u_bounce;        // 1: add last frame's probe irradiance at hits (infinite bounces)
-uniform int u_world_light;   // 1: the world is not black
 
 void main() {
     int r = int(gl_GlobalInvocationID.x);
@@ -51,21 +51,11 @@ void main() {
         return;
     }
     Rng rng = rng_init(uvec2(r, pi), u_seed, 0x9e3779b9u);
-    vec3 V = -d;
-    vec3 N, Ng, p;
-    surface_frame(sh, V, N, Ng, p);
-    Surface bs = sh.bsdf;
-    float NoV = max(dot(N, V), 1e-4);
-    vec3 kd = diffuse_albedo(bs, NoV);
-    vec3 L = shade_direct_at(bs, p, N, Ng, V, rng, false);
-    if (u_world_light != 0 && u_world_select <= 0.0 && max3(kd) > 0.0) {  // a uniform world
-                                                                          // (a map is in shade_direct)
-        vec3 wd = to_world(sample_cosine_hemisphere(rng_next2(rng)), N);
-        if (dot(wd, Ng) > 0.0 && !scene_occluded(p, wd, 0.0, T_INF)) L += kd * u_world_color;
-    }
+    vec3 kd, N, p;
+    vec3 L = bounce_direct(sh, d, rng, kd, N, p);
     if (u_bounce != 0 && max3(kd) > 0.0) {
         float w;
-        vec3 E = probe_irradiance(sh.position, N, V, w);
+        vec3 E = probe_irradiance(sh.position, N, -d, w);
         L += kd * E * (1.0 / PI);
     }
     imageStore(o_rays, ivec2(r, pi), vec4(sanitize(L), sh.t));
