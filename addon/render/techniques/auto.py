@@ -50,6 +50,7 @@ CANDIDATES = {
     "LPV": (("LPV",), "LPV", None),
     "VXGI": (("VXGI",), "VXGI", "VXGI"),
     "IRRADIANCE_VOLUME": (("IRRADIANCE_VOLUME",), "IRRADIANCE_VOLUME", None),
+    "GI10": (("GI10",), "GI10", "probes"),
 }
 BUNDLE = "DIRECT+SSDO+SSR"
 COMPOSITIONS = ("DIRECT+SSDO+SSR", "DDGI+SSR")  # the candidates that are not one technique's own graph

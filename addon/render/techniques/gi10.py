@@ -34,7 +34,7 @@ class GI10(Technique):
     label = "GI-1.0 (screen probes + hash-grid cache)"
     description = ("Screen probes reprojected frame to frame, a quarter refreshed per frame, over a "
                    "hash-grid world radiance cache (AMD GI-1.0), added to DIRECT")
-    family = "probes"
+    family = "radiance cache"
     reference = "full"
     cost_rank = 60
     warmup_frames = 16
