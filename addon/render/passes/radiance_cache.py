@@ -37,11 +37,30 @@ CACHE_PARAMS = (
     Param("rays", 4, 1, 64, "rays per used entry per frame"),
     Param("max_age", 50, 1, 10000, "frames an entry is kept without being used (LRU eviction)"),
     Param("min_blend", 0.05, 0.001, 1.0, "smallest weight of a frame's estimate (history at most 1 - this)"),
-    Param("warmup_blend", 0.8, 0.0, 1.0, "smallest weight of a frame's estimate during an F12 render's warm-up (a short window: the "
+    Param("warmup_blend", 0.8, 0.0, 1.0, "smallest weight of a frame's estimate during an F12 render's warm-up and for 8 frames after "
+          "an edit of the lights, materials or geometry (a short window: the "
           "later bounces build up over frames, and a long mean would keep the early, darker estimates)"),
     Param("fast_blend", 0.25, 0.0, 1.0, "weight of a frame's estimate when the luminance changed by more than change_threshold"),
     Param("change_threshold", 0.8, 0.0, 100.0, "relative luminance change that counts as the light changing"),
 )
+
+
+# scene edits that change the light a cache holds
+LIGHT_EDITS = frozenset({"geometry", "transforms", "materials", "lights", "textures"})
+SETTLE_FRAMES = 8
+
+
+def settling(p: Pass, frame) -> bool:
+    """True in an F12 render's warm-up frames and in the SETTLE_FRAMES frames after a scene
+    edit that changes the light (``p`` counts them): the blend of a cache then uses its short
+    warm-up window, so that a light switched off or moved is followed within a few frames
+    even where the cache's own later bounces would keep the old light alive (a decay of one
+    bounce per frame is a relative change below any threshold that noise does not cross)."""
+    if frame.scene_edits & LIGHT_EDITS:
+        p._settle = SETTLE_FRAMES
+    left = int(getattr(p, "_settle", 0))
+    p._settle = max(0, left - 1)
+    return bool(frame.warmup) or left > 0
 
 
 class RadianceCache:
@@ -125,7 +144,7 @@ class RadianceCacheUpdatePass(Pass):
         set_uniform(prog, "u_rc_max_age", int(self["max_age"]))
         for k in ("fast_blend", "change_threshold"):
             set_uniform(prog, "u_rc_" + k, float(self[k]))
-        blend = max(float(self["min_blend"]), float(self["warmup_blend"]) if frame.warmup else 0.0)
+        blend = max(float(self["min_blend"]), float(self["warmup_blend"]) if settling(self, frame) else 0.0)
         set_uniform(prog, "u_rc_min_blend", blend)
         set_uniform(prog, "u_seed", int(frame.sample) & 0xFFFFFFFF)
         world = rc.scene.scene.world

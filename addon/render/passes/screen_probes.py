@@ -30,7 +30,7 @@ import numpy as np
 from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION
-from .radiance_cache import ENTRIES, IRR as CACHE_IRR, RadianceCache
+from .radiance_cache import ENTRIES, IRR as CACHE_IRR, RadianceCache, settling
 from .screen_space import GBUFFER_BOUND, Units, bind_frame, bind_gbuffer
 
 COLOR = "color"
@@ -134,7 +134,7 @@ class ScreenProbePlacePass(_SPPass):
 
     def resources(self):
         return (self.tiled(POS, history=True), self.tiled(NRM, history=True),
-                self.tiled(SRC, components=1, dtype="i4"))
+                self.tiled(SRC, components=1, dtype="i4", check="none"))
 
     def execute(self, rc, frame):
         self.probes.frame += 1
@@ -186,9 +186,10 @@ class ScreenProbeIntegratePass(_SPPass):
     name = "sp_integrate"
     params = (
         Param("min_blend", 0.05, 0.001, 1.0, "smallest weight of a trace (history at most 1 - this: GI-1.0's 0.95 cap)"),
-        Param("warmup_blend", 0.5, 0.0, 1.0, "smallest weight of a trace during an F12 render's warm-up (a short window "
+        Param("warmup_blend", 0.5, 0.0, 1.0, "smallest weight of a trace during an F12 render's warm-up and for 8 frames "
+              "after an edit of the lights, materials or geometry (a short window "
               "while the world cache's later bounces build up)"),
-        Param("fast_blend", 0.25, 0.0, 1.0, "weight of a trace whose irradiance moved by more than change_threshold"),
+        Param("fast_blend", 0.5, 0.0, 1.0, "weight of a trace whose irradiance moved by more than change_threshold"),
         Param("change_threshold", 0.8, 0.0, 100.0, "relative luminance change that counts as the light changing"),
     )
     reads = (POS, NRM, SRC, ATLAS) + tuple(n + PREV for n in SH)
@@ -207,7 +208,7 @@ class ScreenProbeIntegratePass(_SPPass):
             units.tex(prog, "u_prev" + uni[1:], res[n + PREV])
         for k in ("fast_blend", "change_threshold"):
             set_uniform(prog, "u_sp_" + k, float(self[k]))
-        blend = max(float(self["min_blend"]), float(self["warmup_blend"]) if frame.warmup else 0.0)
+        blend = max(float(self["min_blend"]), float(self["warmup_blend"]) if settling(self, frame) else 0.0)
         set_uniform(prog, "u_sp_min_blend", blend)
         for b, n in enumerate(SH):
             res[n].bind_to_image(b, read=False, write=True)
