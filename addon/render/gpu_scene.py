@@ -538,7 +538,13 @@ class GPUScene:
             from .rt_scene import SceneRT
 
             rt = self._rt = SceneRT(self)
-        return rt.update()
+        from .framegraph import _graph_op
+
+        # scene data built or uploaded on first use belongs to the scene, not to the pass
+        # that happened to ask first (sync validation would see the next pass that traces
+        # rays use buffers that pass "wrote")
+        with _graph_op():
+            return rt.update()
 
     def release(self):
         rt = getattr(self, "_rt", None)
