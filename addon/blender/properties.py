@@ -25,7 +25,7 @@ MENU_GROUPS = (
     ("Screen Space", ("SSAO", "HBAO", "SSDO", "SSR")),
     ("Light Volumes", ("RSM", "LPV", "VXGI")),
     ("Probes", ("IRRADIANCE_VOLUME", "DDGI", "RTXGI", "RTXGI_SSR")),
-    ("Radiance Caches", ("GI10",)),
+    ("Radiance Caches", ("GI10", "SCREEN_PROBES")),
     ("Ray Traced", ("RESTIR_DI", "RESTIR_GI")),
     ("Path Traced + Filter", ("ATROUS", "SVGF", "TAA")),
 )
@@ -50,6 +50,8 @@ MENU_TEXT = {
     "RTXGI": ("RTXGI", "DDGI whose probes move out of walls and switch off where not needed"),
     "RTXGI_SSR": ("RTXGI + SSR", "RTXGI with screen-space reflections for glossy surfaces"),
     "GI10": ("GI-1.0", "Light probes on the visible surfaces over a world-space light cache; no set-up"),
+    "SCREEN_PROBES": ("Screen Probes (Lumen)", "Probes on the visible surfaces traced every frame, refined at edges, "
+                      "over a world-space light cache"),
 }
 
 
@@ -149,7 +151,7 @@ class Setting:
 
 
 PROBES = ("IRRADIANCE_VOLUME", "DDGI", "RTXGI", "RTXGI_SSR")
-SHADOWED = ("DIRECT", "SSAO", "HBAO", "SSDO", "SSR", "RSM", "LPV", "VXGI", "RESTIR_GI", *PROBES, "GI10", "AUTO")
+SHADOWED = ("DIRECT", "SSAO", "HBAO", "SSDO", "SSR", "RSM", "LPV", "VXGI", "RESTIR_GI", *PROBES, "GI10", "SCREEN_PROBES", "AUTO")
 
 SETTINGS = (
     Setting("probe_spacing", "Probe Spacing",
@@ -160,11 +162,11 @@ SETTINGS = (
     Setting("probe_rays", "Rays per Probe", "Rays each probe traces per frame (more: less flicker, slower)",
             (("probe_trace", "rays"),), PROBES, max=1024, soft_max=512),
     Setting("screen_probe_tile", "Probe Spacing", "Pixels between neighbouring screen probes (smaller: finer "
-            "light, slower)", (("sp_place", "tile"),), ("GI10",), max=64, soft_max=32),
+            "light, slower)", (("sp_place", "tile"),), ("GI10", "SCREEN_PROBES"), max=64, soft_max=32),
     Setting("screen_probe_rays", "Rays per Probe", "Rays along each side of a screen probe's hemisphere "
-            "(8: 64 rays)", (("sp_place", "res"),), ("GI10",), max=16),
+            "(8: 64 rays)", (("sp_place", "res"), ("spa_place", "res")), ("GI10", "SCREEN_PROBES"), max=16),
     Setting("cache_rays", "Cache Rays", "Rays each cell of the world light cache traces per frame",
-            (("radiance_cache", "rays"),), ("GI10",), max=64, soft_max=16),
+            (("radiance_cache", "rays"),), ("GI10", "SCREEN_PROBES"), max=64, soft_max=16),
     Setting("voxel_resolution", "Voxel Resolution", "Voxels along each side of a cascade (more: sharper light, "
             "more memory)", (("vxgi_voxelize", "resolution"),), ("VXGI",), max=256, soft_max=128),
     Setting("voxel_cascades", "Cascades", "Nested voxel grids around the camera, each twice as coarse",

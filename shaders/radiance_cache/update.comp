@@ -2,7 +2,8 @@
 // A used entry traces u_rc_rays cosine-distributed rays from the point it was made for; a hit
 // returns the light it reflects towards the cell (lib/bounce.glsl: its direct light, the uniform
 // sky at it, and its diffuse albedo × last frame's cached irradiance there / π: infinite
-// bounces over frames, the lookup requesting the cells it misses). Misses and back faces add
+// bounces over frames, the lookup requesting the cells it misses); either side of a surface
+// reflects, as Cycles shades them (the cells sit on surfaces, outside geometry). Misses add
 // nothing (the world seen from the cell is direct light). E = π · mean(L), blended into last
 // frame's value with weight max(1 / n, u_rc_min_blend) (n: samples so far), raised to
 // u_rc_fast_blend when the luminance moved by more than u_rc_change_threshold (relative): a
@@ -50,7 +51,7 @@ void main() {
     for (int r = 0; r < u_rc_rays; ++r) {
         vec3 d = to_world(sample_cosine_hemisphere(rng_next2(rng)), n);
         SurfaceHit sh;
-        if (!scene_trace(o, d, 0.0, T_INF, sh) || dot(sh.geo_normal, d) > 0.0) continue;
+        if (!scene_trace(o, d, 0.0, T_INF, sh)) continue;
         vec3 kd, N, p;
         vec3 L = bounce_direct(sh, d, rng, kd, N, p);
         if (max3(kd) > 0.0) {

@@ -5,12 +5,13 @@
 // the pixel's normal. Where the probes' weight w is below u_min_weight (no probe shares the
 // pixel's surface: interpolation failed), the world radiance cache's irradiance at the pixel
 // makes up the rest (E = (Σ w_p E_p + (w_min - Σ w_p) E_cache) / w_min), the cell being
-// requested when missing (GI-1.0's fallback), if the point its entry traces from is visible
+// requested when missing (GI-1.0's fallback; SP_ADAPTIVE: first the adaptive probes placed
+// where the coarse ones fail), if the point its entry traces from is visible
 // from the pixel (radiance_cache/common.glsl: a cell may straddle a thin wall). Diffuse: color += kd · E / π; glossy (u_glossy):
 // color += ks · E(R) / π, the same probes read at the mirror direction (blurry, as RTXGI's).
 // Render passes: o_diffuse, o_glossy, o_effect (their sum); debug views o_view_probes (the
 // interpolated irradiance E/π, each probe drawn as a dot: green kept, yellow refreshed this
-// frame, red new) and o_view_cache (the cache cell of each pixel in a colour of its own,
+// frame, red new; SP_ADAPTIVE: blue for the adaptive probes) and o_view_cache (the cache cell of each pixel in a colour of its own,
 // brighter with more samples; black: no entry).
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
@@ -42,6 +43,16 @@ uniform float u_min_weight;
 uniform int u_glossy;      // 1: glossy indirect light from the probes
 uniform int u_cache;
 uniform int u_debug;
+#ifdef SP_ADAPTIVE
+uniform sampler2D u_fine_pos;
+uniform sampler2D u_fine_nrm;
+uniform sampler2D u_fine_sh_r;
+uniform sampler2D u_fine_sh_g;
+uniform sampler2D u_fine_sh_b;
+uniform sampler2D u_fine_sh_n;
+uniform int u_fine_tile;
+uniform ivec2 u_fine_grid;
+#endif
 
 void main() {
     ivec2 px = ivec2(gl_GlobalInvocationID.xy);
@@ -57,27 +68,23 @@ void main() {
         vec3 R = reflect(-V, g.N);
         bool glossy = u_glossy != 0 && max3(specular_albedo(s, NoV)) > 0.0;
         float depth = max(view_depth(g.P), 1e-4);
-        vec2 f = (vec2(px) + 0.5) / float(u_sp_tile) - 0.5;
-        ivec2 t0 = ivec2(floor(f));
-        vec2 fr = f - vec2(t0);
         vec3 E = vec3(0.0), ER = vec3(0.0);
-        float wsum = 0.0;
-        for (int j = 0; j < 2; ++j)
-            for (int i = 0; i < 2; ++i) {
-                ivec2 t = clamp(t0 + ivec2(i, j), ivec2(0), u_sp_grid - 1);
-                vec4 pp = texelFetch(u_sp_pos, t, 0);
-                if (pp.w < 0.5) continue;
-                vec3 n = texelFetch(u_sp_nrm, t, 0).xyz;
-                float b = (i == 0 ? 1.0 - fr.x : fr.x) * (j == 0 ? 1.0 - fr.y : fr.y);
-                float pd = abs(dot(n, g.P - pp.xyz)) / (u_sp_plane_tol * depth);
-                float w = max(b, 1e-3) * exp(-pd * pd) * pow(max(dot(g.Ng, n), 0.0), 4.0);
-                if (w <= 1e-6) continue;
-                vec4 r = texelFetch(u_sh_r, t, 0), gg = texelFetch(u_sh_g, t, 0), bb = texelFetch(u_sh_b, t, 0);
-                vec3 en = texelFetch(u_sh_n, t, 0).rgb;
-                E += w * sp_irradiance(r, gg, bb, en, n, g.N);
-                if (glossy) ER += w * sp_irradiance(r, gg, bb, en, n, R);
-                wsum += w;
+        float wsum = sp_gather_grid(u_sp_pos, u_sp_nrm, u_sh_r, u_sh_g, u_sh_b, u_sh_n, true, u_sp_tile, u_sp_grid,
+                                    vec2(px) + 0.5, g.P, g.Ng, g.N, R, glossy, depth, u_sp_plane_tol, E, ER);
+#ifdef SP_ADAPTIVE
+        if (wsum < u_min_weight) {  // the adaptive probes placed where these fail
+            vec3 Ef = vec3(0.0), ERf = vec3(0.0);
+            float wf = sp_gather_grid(u_fine_pos, u_fine_nrm, u_fine_sh_r, u_fine_sh_g, u_fine_sh_b, u_fine_sh_n, true,
+                                      u_fine_tile, u_fine_grid, vec2(px) + 0.5, g.P, g.Ng, g.N, R, glossy, depth,
+                                      u_sp_plane_tol, Ef, ERf);
+            if (wf > 1e-4) {
+                float k = u_min_weight - wsum;
+                E += k * Ef / wf;
+                ER += k * ERf / wf;
+                wsum = u_min_weight;
             }
+        }
+#endif
         if (wsum < u_min_weight && u_cache != 0) {
             float smp;
             vec3 Ec = rc_irradiance(g.P, g.Ng, true, smp);  // (visibility-checked)
@@ -109,6 +116,12 @@ void main() {
     vec4 pp = texelFetch(u_sp_pos, t, 0);
     if (pp.w > 0.5 && distance(vec2(px) + 0.5, to_pixel(pp.xyz)) < max(1.0, float(u_sp_tile) * 0.08))
         vp = pp.w > 2.5 ? vec3(1.0, 0.1, 0.1) : (pp.w > 1.5 ? vec3(1.0, 0.9, 0.1) : vec3(0.1, 1.0, 0.2));
+#ifdef SP_ADAPTIVE
+    ivec2 tf = clamp(px / u_fine_tile, ivec2(0), u_fine_grid - 1);
+    vec4 pf = texelFetch(u_fine_pos, tf, 0);
+    if (pf.w > 0.5 && distance(vec2(px) + 0.5, to_pixel(pf.xyz)) < max(1.0, float(u_fine_tile) * 0.12))
+        vp = vec3(0.2, 0.5, 1.0);
+#endif
     imageStore(o_view_probes, px, vec4(vp, 1.0));
     vec3 vc = vec3(0.0);
     if (g.valid && u_cache != 0) {

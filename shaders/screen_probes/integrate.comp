@@ -1,6 +1,6 @@
 // integrate.comp — one invocation per probe: this frame's rays projected on 2-band SH
-// (2π / res² · Σ L(ω) Y(ω) over the uniform hemisphere strata) and integrated into the
-// irradiance at the probe's normal (2π / res² · Σ L(ω) n·ω: exact, where 2-band SH is not: it
+// (1/N · Σ L(ω) Y(ω) / pdf(ω), screen_probes/common.glsl sp_ray) and integrated into the
+// irradiance at the probe's normal (1/N · Σ L(ω) n·ω / pdf(ω): exact, where 2-band SH is not: it
 // misses the third band of the cosine lobe, 25 % of a light at the normal), blended into the history
 // the probe brought along (o_src: last frame's tile, -1 for a new probe) with weight
 // max(1 / traces, u_sp_min_blend), raised to u_sp_fast_blend when the irradiance at the
@@ -47,19 +47,19 @@ void main() {
         vec3 n = normalize(pn.xyz);
         vec4 fr = vec4(0.0), fg = vec4(0.0), fb = vec4(0.0);
         vec3 fn = vec3(0.0);
-        for (int j = 0; j < u_sp_res; ++j)
-            for (int i = 0; i < u_sp_res; ++i) {
-                ivec2 k = ivec2(i, j);
-                vec3 L = finite_or_zero(texelFetch(u_sp_atlas, t * u_sp_res + k, 0)).rgb;
-                vec3 d = sp_ray_dir(t, k, n, u_sp_frame);
-                vec4 y = sh_basis(d);
-                fn += L * max(dot(n, d), 0.0);
-                fr += L.r * y;
-                fg += L.g * y;
-                fb += L.b * y;
-            }
-        float w = TWO_PI / float(u_sp_res * u_sp_res);
-        fr *= w; fg *= w; fb *= w; fn *= w;
+        if (u_sp_importance != 0) sp_build_cdf(hr, hg, hb, n, src >= 0);  // as the trace drew its rays
+        int N = sp_strata();
+        for (int k = 0; k < N; ++k) {
+            vec3 L = finite_or_zero(texelFetch(u_sp_atlas, t * u_sp_res + ivec2(k % u_sp_res, k / u_sp_res), 0)).rgb;
+            float pdf;
+            vec3 d = sp_ray(t, k, n, u_sp_frame, pdf);
+            float w = 1.0 / (float(N) * max(pdf, 1e-8));
+            vec4 y = sh_basis(d) * w;
+            fr += L.r * y;
+            fg += L.g * y;
+            fb += L.b * y;
+            fn += L * (max(dot(n, d), 0.0) * w);
+        }
         float traces = max(pn.w, 1.0);
         float a = src >= 0 ? max(1.0 / traces, u_sp_min_blend) : 1.0;
         float lp = luminance(hn.rgb), ln = luminance(fn);

@@ -8,6 +8,10 @@
 // Refresh: a kept probe traces once in u_sp_refresh frames (a rotating pattern over 2×2 tiles
 // for 4: a quarter of the probes per frame) and every frame while it has fewer than
 // u_sp_spawn_traces traces; a new probe traces at once.
+// SP_ADAPTIVE (SCREEN_PROBES' adaptive refinement, after Lumen): the set of half-size tiles
+// that get a probe only where the coarse probes' interpolation weight at the tile's centre
+// pixel is below u_min_weight (a corner, an edge, a thin object); the new probe sits on that
+// pixel.
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/rng.glsl"
@@ -27,11 +31,34 @@ uniform int u_history;           // 0: last frame's probes are not valid (reset)
 uniform float u_sp_plane_tol;
 uniform int u_sp_refresh;
 uniform float u_sp_spawn_traces;
+#ifdef SP_ADAPTIVE
+// adaptive refinement (SCREEN_PROBES): this set's tiles are half the coarse set's; a tile gets
+// a probe only where the coarse probes fail to interpolate at its centre pixel
+uniform sampler2D u_coarse_pos;
+uniform sampler2D u_coarse_nrm;
+uniform int u_coarse_tile;
+uniform ivec2 u_coarse_grid;
+uniform float u_min_weight;
+#endif
 
 void main() {
     ivec2 t = ivec2(gl_GlobalInvocationID.xy);
     if (!sp_in_grid(t)) return;
     ivec2 lo = t * u_sp_tile, hi = min(lo + u_sp_tile, ivec2(u_resolution));
+#ifdef SP_ADAPTIVE
+    ivec2 c = min((lo + hi) / 2, ivec2(u_resolution) - 1);
+    GPixel gc = fetch_g(c);
+    vec3 unused = vec3(0.0);
+    if (!gc.valid || sp_gather_grid(u_coarse_pos, u_coarse_nrm, u_coarse_pos, u_coarse_pos, u_coarse_pos,
+                                    u_coarse_pos, false, u_coarse_tile, u_coarse_grid, vec2(c) + 0.5, gc.P,
+                                    gc.Ng, gc.N, gc.N, false, max(view_depth(gc.P), 1e-4), u_sp_plane_tol,
+                                    unused, unused) >= u_min_weight) {
+        imageStore(o_pos, t, vec4(0.0));
+        imageStore(o_nrm, t, vec4(0.0, 0.0, 1.0, 0.0));
+        imageStore(o_src, t, ivec4(-1));
+        return;
+    }
+#endif
     int src = -1;
     float best = -1.0;
     vec3 P = vec3(0.0), N = vec3(0.0, 0.0, 1.0);
@@ -68,6 +95,9 @@ void main() {
         for (int k = 0; k < 8; ++k) {
             uvec4 h = pcg4d(uvec4(uvec2(t), u_sp_frame, uint(k) + 0x51u));
             ivec2 px = lo + ivec2(h.xy % uvec2(max(hi - lo, ivec2(1))));
+#ifdef SP_ADAPTIVE
+            if (k == 0) px = c;  // where interpolation failed
+#endif
             GPixel g = fetch_g(px);
             if (g.valid) {
                 P = g.P;

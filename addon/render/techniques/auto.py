@@ -51,6 +51,7 @@ CANDIDATES = {
     "VXGI": (("VXGI",), "VXGI", "VXGI"),
     "IRRADIANCE_VOLUME": (("IRRADIANCE_VOLUME",), "IRRADIANCE_VOLUME", None),
     "GI10": (("GI10",), "GI10", "probes"),
+    "SCREEN_PROBES": (("SCREEN_PROBES",), "SCREEN_PROBES", "probes"),
 }
 BUNDLE = "DIRECT+SSDO+SSR"
 COMPOSITIONS = ("DIRECT+SSDO+SSR", "DDGI+SSR")  # the candidates that are not one technique's own graph
