@@ -26,16 +26,24 @@
   lamp in room A, none in room B, where the camera looks at the door. Room B gets the lamp's
   light only through the door (a patch on its floor) and what bounces from there: transport
   around a corner.
+* ``behind_camera``: a closed room (4 x 6 x 3 m, white, one red wall) whose only light is an
+  area lamp behind the camera facing away from it, onto the wall behind the camera: nothing
+  the camera sees is lit directly or shows the lit wall. The screen-space limit (the light
+  comes from off screen): SSDO finds no bounce; world-space rays (probes, screen probes with
+  their world cache) must.
 
 Used by ``test_probes.py`` and ``scripts/bench_probes.py``.
 """
 from __future__ import annotations
 
+import math
+
 import bpy
 
 from _helpers import build_named_scene
 
-SCENES = ("white_room", "furnace", "furnace_room", "two_rooms", "probe_in_box", "glossy_room", "doorway")
+SCENES = ("white_room", "furnace", "furnace_room", "two_rooms", "probe_in_box", "glossy_room", "doorway",
+          "behind_camera")
 
 
 def _white_room(b, mp, mw):
@@ -108,8 +116,22 @@ def _doorway(b, mp, mw):
     b.scene.world = mw(b.n("world"), (0, 0, 0), 0.0)
 
 
+def _behind_camera(b, mp, mw):
+    white = mp(b.n("white"), (0.8, 0.8, 0.8), 1.0, specular=0.0)
+    red = mp(b.n("red"), (0.7, 0.1, 0.08), 1.0, specular=0.0)
+    b.room("room", (-2, -3, 0), (2, 3, 3), {**{k: white for k in ("floor", "ceiling", "-x", "+y")}, "+x": red,
+                                            "-y": white})
+    b.box("block", (0.8, 0.8, 0.8), white, location=(0.6, 1.6, 0.4))
+    # an area light behind the camera facing away from it: it lights the wall behind the camera
+    # (never on screen); everything the camera sees is lit by that wall's bounce
+    b.light("lamp", "AREA", (0.0, -1.8, 1.8), rotation=(-math.pi / 2, 0.0, 0.0), energy=400.0, size=1.0)
+    b.camera((0.0, -1.2, 1.5), (0.0, 3.0, 1.0), lens=28.0)
+    b.scene.world = mw(b.n("world"), (0, 0, 0), 0.0)
+
+
 _BUILD = {"white_room": _white_room, "furnace": _furnace, "furnace_room": _furnace_room, "two_rooms": _two_rooms,
-          "probe_in_box": _probe_in_box, "glossy_room": _glossy_room, "doorway": _doorway}
+          "probe_in_box": _probe_in_box, "glossy_room": _glossy_room, "doorway": _doorway,
+          "behind_camera": _behind_camera}
 
 
 def build(name: str, resolution: int = 48) -> bpy.types.Scene:
