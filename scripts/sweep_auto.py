@@ -2,6 +2,7 @@
 ``techniques/auto.py`` CANDIDATES, the relMSE against Cycles full and the ms/frame.
 
     /work/heavy .venv/bin/python scripts/sweep_auto.py [--size 32] [--frames 8] [--spp 256] [--repeats 3] [--out addon/render/auto_table.json]
+    /work/heavy .venv/bin/python scripts/sweep_auto.py --candidates GI10,SCREEN_PROBES   # add new candidates' rows
     .venv/bin/python scripts/sweep_auto.py --compare   # fixed bundle vs AUTO's choice on scenes outside the table
     .venv/bin/python scripts/sweep_auto.py --loo       # leave-one-out check of AUTO's choice on the table
 
@@ -72,6 +73,8 @@ def main():
     ap.add_argument("--slow-ms", type=float, default=1000.0, help="no repeat for a candidate slower than this")
     ap.add_argument("--scenes", nargs="*", default=list(DEMOS))
     ap.add_argument("--out", default=str(REPO / "addon" / "render" / "auto_table.json"))
+    ap.add_argument("--candidates", default="",
+                    help="measure only these candidates (comma-separated) and merge their rows into the table at --out")
     ap.add_argument("--compare", action="store_true",
                     help="fixed bundle vs AUTO's choice on scenes outside the table (scenes_probes, scenes_screen_space)")
     ap.add_argument("--loo", action="store_true",
@@ -84,14 +87,22 @@ def main():
     table = {"width": a.size, "height": a.size, "frames": a.frames, "quality": a.quality, "reference": "full",
              "reference_spp": a.spp, "repeats": a.repeats, "device": "Mesa llvmpipe, 2 CPU cores", "scenes": {},
              "rows": []}
+    only = [c for c in a.candidates.split(",") if c]
+    if only:  # a new candidate: its rows join the table measured before (same settings)
+        unknown = set(only) - set(auto.CANDIDATES)
+        if unknown:
+            raise SystemExit(f"unknown candidates {sorted(unknown)}")
+        table = auto.load_table(a.out)
+        table["rows"] = [r for r in table["rows"] if r["candidate"] not in only]
     for name in a.scenes:
         sc = demo_scenes.build_demo(name, resolution=a.size)
         sd = export_scene(reference.evaluated_depsgraph(sc))
         ref = reference.get_reference(sc, "full", a.spp).image
         key = f"sweep_{name}"
-        rows, sh = measure(sc, sd, ref, list(auto.CANDIDATES), a.frames, a.quality, key, a.repeats, a.slow_ms)
+        rows, sh = measure(sc, sd, ref, only or list(auto.CANDIDATES), a.frames, a.quality, key, a.repeats, a.slow_ms)
         print(name, {k: round(v, 3) for k, v in sh.items()}, flush=True)
-        table["scenes"][name] = {"shares": {k: round(float(v), 5) for k, v in sh.items()}}
+        if not only:
+            table["scenes"][name] = {"shares": {k: round(float(v), 5) for k, v in sh.items()}}
         for r in rows:
             table["rows"].append({"scene": name, **r})
         session.release_session(key)

@@ -25,7 +25,7 @@ MENU_GROUPS = (
     ("Screen Space", ("SSAO", "HBAO", "SSDO", "SSR")),
     ("Light Volumes", ("RSM", "LPV", "VXGI")),
     ("Probes", ("IRRADIANCE_VOLUME", "DDGI", "RTXGI", "RTXGI_SSR")),
-    ("Radiance Caches", ("GI10", "SCREEN_PROBES")),
+    ("Radiance Caches", ("SURFEL", "GI10", "SCREEN_PROBES")),
     ("Ray Traced", ("RESTIR_DI", "RESTIR_GI")),
     ("Path Traced + Filter", ("ATROUS", "SVGF", "TAA")),
 )
@@ -49,6 +49,7 @@ MENU_TEXT = {
     "DDGI": ("DDGI", "Ray-traced light probes that know what they see; little leaking"),
     "RTXGI": ("RTXGI", "DDGI whose probes move out of walls and switch off where not needed"),
     "RTXGI_SSR": ("RTXGI + SSR", "RTXGI with screen-space reflections for glossy surfaces"),
+    "SURFEL": ("Surfel GI", "Light cached on small discs spawned on the visible surfaces; they follow moving objects"),
     "GI10": ("GI-1.0", "Light probes on the visible surfaces over a world-space light cache; no set-up"),
     "SCREEN_PROBES": ("Screen Probes (Lumen)", "Probes on the visible surfaces traced every frame, refined at edges, "
                       "over a world-space light cache"),
@@ -151,7 +152,7 @@ class Setting:
 
 
 PROBES = ("IRRADIANCE_VOLUME", "DDGI", "RTXGI", "RTXGI_SSR")
-SHADOWED = ("DIRECT", "SSAO", "HBAO", "SSDO", "SSR", "RSM", "LPV", "VXGI", "RESTIR_GI", *PROBES, "GI10", "SCREEN_PROBES", "AUTO")
+SHADOWED = ("DIRECT", "SSAO", "HBAO", "SSDO", "SSR", "RSM", "LPV", "VXGI", "RESTIR_GI", *PROBES, "SURFEL", "GI10", "SCREEN_PROBES", "AUTO")
 
 SETTINGS = (
     Setting("probe_spacing", "Probe Spacing",
@@ -165,6 +166,10 @@ SETTINGS = (
             "light, slower)", (("sp_place", "tile"),), ("GI10", "SCREEN_PROBES"), max=64, soft_max=32),
     Setting("screen_probe_rays", "Rays per Probe", "Rays along each side of a screen probe's hemisphere "
             "(8: 64 rays)", (("sp_place", "res"), ("spa_place", "res")), ("GI10", "SCREEN_PROBES"), max=16),
+    Setting("surfel_capacity", "Surfels", "Most surfels alive at once (the pool's fixed size)",
+            (("surfel_prepare", "capacity"),), ("SURFEL",), max=262144, soft_max=65536),
+    Setting("surfel_rays", "Rays per Surfel", "Rays each surfel traces per frame",
+            (("surfel_prepare", "rays"),), ("SURFEL",), max=64, soft_max=16),
     Setting("cache_rays", "Cache Rays", "Rays each cell of the world light cache traces per frame",
             (("radiance_cache", "rays"),), ("GI10", "SCREEN_PROBES"), max=64, soft_max=16),
     Setting("voxel_resolution", "Voxel Resolution", "Voxels along each side of a cascade (more: sharper light, "

@@ -84,7 +84,7 @@ REGISTRY: dict[str, type] = {}
 
 # Modules of techniques, in menu order. A module that fails to import is reported, not fatal.
 _MODULES = ("direct", "pt", "ssao", "hbao", "ssdo", "ssr", "rsm", "lpv", "vxgi", "restir_di", "restir_gi",
-            "atrous", "svgf", "taa", "irradiance_volume", "ddgi", "rtxgi", "gi10", "screen_probes", "auto")
+            "atrous", "svgf", "taa", "irradiance_volume", "ddgi", "rtxgi", "surfel", "gi10", "screen_probes", "auto")
 _loaded = False
 LOAD_ERRORS: dict[str, str] = {}
 

@@ -52,6 +52,7 @@ CANDIDATES = {
     "IRRADIANCE_VOLUME": (("IRRADIANCE_VOLUME",), "IRRADIANCE_VOLUME", None),
     "GI10": (("GI10",), "GI10", "probes"),
     "SCREEN_PROBES": (("SCREEN_PROBES",), "SCREEN_PROBES", "probes"),
+    "SURFEL": (("SURFEL",), "SURFEL", None),
 }
 BUNDLE = "DIRECT+SSDO+SSR"
 COMPOSITIONS = ("DIRECT+SSDO+SSR", "DDGI+SSR")  # the candidates that are not one technique's own graph
