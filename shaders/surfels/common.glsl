@@ -64,6 +64,13 @@ int sf_cascade(vec3 p) {
     return -1;
 }
 
+// A new surfel's radius at p: `want` (its pixel size at its depth) but at most the cell side of
+// p's cascade, so that it is listed in every cell it overlaps (<= 3 per axis); 0 outside the grid.
+float sf_spawn_radius(vec3 p, float want) {
+    int k = sf_cascade(p);
+    return k < 0 ? 0.0 : min(want, u_sf_cell * exp2(float(k)));
+}
+
 ivec3 sf_cell_of(vec3 p, int k) {
     float s = u_sf_cell * exp2(float(k));
     return ivec3(floor((p - u_sf_center) / s)) + SF_GRID / 2;

@@ -3,7 +3,8 @@
 // u_sf_coverage a surfel is spawned there, with probability u_sf_spawn_chance per frame (a
 // disocclusion fills over a few frames instead of flooding the pool). The new surfel is taken
 // from the free stack, placed on the instance a camera ray meets at that pixel (object space,
-// so it follows the instance), with a radius of u_sf_radius_px pixels at its depth.
+// so it follows the instance), with a radius of u_sf_radius_px pixels at its depth (at most its
+// cascade's cell side).
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/sampling.glsl"
@@ -46,7 +47,8 @@ void main() {
     vec3 d = g.P - o;
     float dist = length(d);
     SurfaceHit sh;
-    if (dist <= 0.0 || !scene_trace(o, d / dist, 0.0, dist * 1.01 + 1e-4, sh) || sh.instance < 0) return;
+    float r = sf_spawn_radius(g.P, u_sf_radius_px / pixels_per_unit(view_depth(g.P)));
+    if (r <= 0.0 || dist <= 0.0 || !scene_trace(o, d / dist, 0.0, dist * 1.01 + 1e-4, sh) || sh.instance < 0) return;
     int slot = int(atomicAdd(sf_free_count, uint(-1))) - 1;  // pop
     if (slot < 0) {
         atomicAdd(sf_free_count, 1u);  // the pool is empty: give the count back
@@ -55,9 +57,9 @@ void main() {
     int i = int(sf_free[slot]);
     RtInstance inst = rt_instances[sh.instance];
     vec3 n = g.Ng;
-    sf_surfels[i].pos = vec4((inst.world_to_object * vec4(g.P, 1.0)).xyz, u_sf_radius_px / pixels_per_unit(view_depth(g.P)));
+    sf_surfels[i].pos = vec4((inst.world_to_object * vec4(g.P, 1.0)).xyz, r);
     sf_surfels[i].nrm = vec4(normalize(transpose(mat3(inst.object_to_world)) * n), 0.0);
     sf_surfels[i].info = uvec4(uint(sh.instance + 1), u_sf_frame, u_sf_frame, 0u);
-    sf_surfels[i].wpos = vec4(g.P, u_sf_radius_px / pixels_per_unit(view_depth(g.P)));
+    sf_surfels[i].wpos = vec4(g.P, r);
     sf_surfels[i].wnrm = vec4(n, 0.0);  // alive from the next frame's prepare
 }

@@ -37,7 +37,8 @@ uniform float u_sf_radius_px;
 // A new surfel at a ray's hit (object space of its instance), sized as a screen spawn at that
 // distance from the camera.
 void sf_spawn_at(vec3 p, vec3 n, int instance) {
-    if (instance < 0) return;
+    float r = sf_spawn_radius(p, u_sf_radius_px / pixels_per_unit(max(distance(p, u_camera_pos), 1e-4)));
+    if (instance < 0 || r <= 0.0) return;
     int slot = int(atomicAdd(sf_free_count, uint(-1))) - 1;  // pop (no pass pushes in this one)
     if (slot < 0) {
         atomicAdd(sf_free_count, 1u);
@@ -45,7 +46,6 @@ void sf_spawn_at(vec3 p, vec3 n, int instance) {
     }
     int j = int(sf_free[slot]);
     RtInstance inst = rt_instances[instance];
-    float r = u_sf_radius_px / pixels_per_unit(max(distance(p, u_camera_pos), 1e-4));
     sf_surfels[j].pos = vec4((inst.world_to_object * vec4(p, 1.0)).xyz, r);
     sf_surfels[j].nrm = vec4(normalize(transpose(mat3(inst.object_to_world)) * n), 0.0);
     sf_surfels[j].info = uvec4(uint(instance + 1), u_sf_frame, u_sf_frame, 0u);

@@ -279,12 +279,17 @@ def surfel_chain(quality, **params) -> list:
 
 
 def read_surfels(rc, surfels: SurfelSet) -> dict:
-    """Pool occupancy for tests and benchmarks (GL thread, after the graph's barriers):
-    ``capacity``, ``live``, ``free`` (the stack's count), ``bytes``."""
+    """The pool for tests and benchmarks (GL thread, after the graph's barriers): ``capacity``,
+    ``live``, ``free`` (the stack's count), ``bytes``, and per live surfel ``index``,
+    ``instance``, ``made`` (the frame it was spawned), ``world`` (N, 3) positions as of this
+    frame's prepare (or spawn)."""
     rc.barrier_external([POOL])
     raw = np.frombuffer(rc.resources[POOL].read(), np.uint32)
     cap = surfels.capacity
     free = int(raw[0])
     recs = raw[4 + cap:4 + cap + cap * (SURFEL_BYTES // 4)].reshape(cap, SURFEL_BYTES // 4)
-    live = int((recs[:, 8] != 0).sum())  # info.x
-    return {"capacity": cap, "live": live, "free": free, "bytes": surfels.bytes(), "frame": int(surfels.frame)}
+    alive = recs[:, 8] != 0  # info.x
+    world = recs[:, 12:15].view(np.float32)
+    return {"capacity": cap, "live": int(alive.sum()), "free": free, "bytes": surfels.bytes(),
+            "frame": int(surfels.frame), "index": np.nonzero(alive)[0], "instance": recs[alive, 8].astype(int) - 1,
+            "made": recs[alive, 10].astype(np.int64), "world": world[alive].copy()}
