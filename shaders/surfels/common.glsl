@@ -137,8 +137,11 @@ float sf_weight(int i, vec3 P, vec3 N) {
     return w;
 }
 
-// Irradiance at P (normal N) from the surfels around it; `coverage`: the summed weight.
-vec3 sf_irradiance(vec3 P, vec3 N, out float coverage, bool mark_seen) {
+// Irradiance at P (normal N) from the surfels around it; `coverage`: the summed weight. `mark`:
+// the frame the surfels used are marked as last used by (raised to it, never lowered; 0: not
+// marked): a pixel marks them with this frame, a surfel's ray with the frame that surfel was
+// last used, so a cluster of surfels no pixel sees any more ages out together.
+vec3 sf_irradiance(vec3 P, vec3 N, out float coverage, uint mark) {
     int count;
     int base = sf_cell_at(P, count);
     vec3 E = vec3(0.0);
@@ -149,7 +152,7 @@ vec3 sf_irradiance(vec3 P, vec3 N, out float coverage, bool mark_seen) {
         if (w <= 0.0) continue;
         E += w * max(sf_state[i * SF_STATE].rgb, vec3(0.0));
         coverage += w;
-        if (mark_seen) sf_surfels[i].info.y = u_sf_frame;
+        if (mark != 0u) atomicMax(sf_surfels[i].info.y, mark);
     }
     return coverage > 0.0 ? E / coverage : vec3(0.0);
 }

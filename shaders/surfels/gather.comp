@@ -32,7 +32,7 @@ void main() {
     if (g.valid) {
         Surface s = fetch_surface(px, g.mid);
         float NoV = max(dot(g.N, view_dir(g.P)), 1e-4);
-        vec3 E = sf_irradiance(g.P, g.Ng, cov, true);
+        vec3 E = sf_irradiance(g.P, g.Ng, cov, u_sf_frame);
         add = diffuse_albedo(s, NoV) * E * INV_PI;
     }
     vec3 total = sanitize(c.rgb + add);

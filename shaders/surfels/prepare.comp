@@ -1,6 +1,6 @@
 // prepare.comp — per surfel, first of the surfel passes each frame. u_stage 0 (after a reset):
-// every surfel free, the free stack full. u_stage 1: a surfel no pixel and no other surfel's ray
-// has used for u_sf_max_age frames is recycled (pushed back on the free stack: this is the only
+// every surfel free, the free stack full. u_stage 1: a surfel unused for u_sf_max_age frames
+// (info.y: surfels/common.glsl sf_irradiance's marks) is recycled (pushed back on the free stack: this is the only
 // pass that pushes, the spawns only pop); each live surfel's world position and normal from its
 // instance's transform this frame (surfels on moving objects move with them); the grid's cell
 // counts cleared.

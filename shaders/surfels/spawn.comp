@@ -36,7 +36,7 @@ void main() {
         GPixel g = fetch_g(px);
         if (!g.valid) continue;
         float cov;
-        sf_irradiance(g.P, g.Ng, cov, false);
+        sf_irradiance(g.P, g.Ng, cov, 0u);
         if (cov < best) { best = cov; bp = px; }
     }
     if (bp.x < 0 || best >= u_sf_coverage) return;

@@ -1,7 +1,8 @@
 // update.comp — per live surfel: u_sf_rays cosine rays from its world position; a hit
 // returns its light towards the surfel besides the surfel's own direct light (lib/bounce.glsl)
 // plus its diffuse albedo × the surfels' irradiance there / π (last frame's: the later bounces
-// build up over frames; the surfels used are marked used); misses add nothing (the sky seen
+// build up over frames; the surfels used are marked used as of when this one was last used);
+// misses add nothing (the sky seen
 // from the surfel is direct light). A hit no surfel covers spawns one there with chance
 // u_sf_ray_spawn_chance (at most one per surfel and frame): surfaces the camera does not see
 // (behind it, around a corner) get surfels too, and so the later bounces they reflect.
@@ -82,7 +83,7 @@ void main() {
             vec3 kd, N, p;
             vec3 L = bounce_direct(sh, d, rng, kd, N, p);
             float cov;
-            vec3 Es = sf_irradiance(p, N, cov, true);  // (marks the surfels it uses as used)
+            vec3 Es = sf_irradiance(p, N, cov, s.info.y);  // (marks the surfels it uses)
             if (max3(kd) > 0.0) L += kd * Es * INV_PI;
             if (cov <= 0.0 && !spawned && rng_next(rng) < u_sf_ray_spawn_chance) {
                 spawned = true;  // an uncovered hit, maybe off screen: a surfel there
