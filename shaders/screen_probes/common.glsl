@@ -1,4 +1,4 @@
-// screen_probes/common.glsl — screen-space radiance probes (GI10; SCREEN_PROBES can share them):
+// screen_probes/common.glsl — screen-space radiance probes (GI10 and SCREEN_PROBES):
 // one probe per u_sp_tile × u_sp_tile pixel tile, placed on a surface the tile sees, tracing
 // u_sp_res × u_sp_res rays over the hemisphere of its normal. Host side:
 // addon/render/passes/screen_probes.py (ScreenProbes: the uniforms, resources and passes).

@@ -1,6 +1,6 @@
 """The world-space radiance cache: a spatial hash grid of indirect irradiance (after the world
 cache of GI-1.0, Boissé et al. 2023), shared by the techniques that need light from beyond
-the screen and the later bounces without tracing paths (GI10; SCREEN_PROBES can share it).
+the screen and the later bounces without tracing paths (GI10 and SCREEN_PROBES).
 
 Storage (``shaders/radiance_cache/common.glsl`` documents the layout): ``buckets`` buckets of
 16 entries (GI-1.0: 4096 × 16); an entry is a cell of a grid whose side grows with the

@@ -1,9 +1,12 @@
 """Screen probes: radiance probes placed on the surfaces the camera sees, one per screen tile,
 and the passes that trace, integrate, filter and gather them (GI10 after GI-1.0, Boissé et
-al. 2023; SCREEN_PROBES after Lumen's final gather can share them). The shaders'
-``screen_probes/common.glsl`` documents the storage and the ray directions.
+al. 2023; SCREEN_PROBES after Lumen's final gather, with importance sampling and adaptive
+probes). The shaders' ``screen_probes/common.glsl`` documents the storage and the ray
+directions.
 
-A ``ScreenProbes`` object is shared by the passes of one graph (``screen_probe_chain``):
+A ``ScreenProbes`` object (one probe set, its resources named under a prefix: ``sp`` for the
+probes, ``spa`` for SCREEN_PROBES' adaptive set) is shared by the passes of one graph
+(``screen_probe_chain``):
 
 ``ScreenProbePlacePass`` (``sp_place``, screen_probes/place.comp): keeps last frame's probe of
 a tile when it reprojects onto the same surface (its SH history comes along), else spawns a
@@ -13,15 +16,17 @@ frames (a quarter of the probes per frame for 4) and every frame until it has
 the probes that trace, ``res`` × ``res`` per probe over the hemisphere of its normal, hits
 shaded with their direct light plus the world radiance cache's irradiance (passes/
 radiance_cache.py) for the later bounces. ``ScreenProbeIntegratePass`` (``sp_integrate``): rays →
-2-band SH, blended with the probe's history (``min_blend``, faster on luminance change).
+2-band SH and the irradiance at the probe's normal, blended with the probe's history
+(``min_blend``, faster on luminance change; importance-sampled rays weighted by their pdf).
 ``ScreenProbeFilterPass`` (``sp_filter``): mean over the neighbours in the probe's plane.
 ``ScreenProbeGatherPass`` (``sp_gather``): per pixel, the 2×2 probes around it weighted by plane
-and normal, the cache where they fail; ``color += kd E/π + ks E(R)/π``; render passes
+and normal, then the adaptive probes, then the cache where they fail; ``color += kd E/π + ks E(R)/π``; render passes
 GI_IndirectDiffuse, GI_IndirectGlossy and the debug views GI_ScreenProbes, GI_CacheOccupancy.
 
 History: probes and their SH are graph-owned history, reset on a camera cut and a parameter
 change; scene edits are followed by reprojection (a probe whose surface moved away is
-replaced) and the luminance-driven blend.
+replaced), the luminance-driven blend, and for 8 frames after a light, material or geometry
+edit the short blending window of the F12 warm-up (radiance_cache.settling).
 """
 from __future__ import annotations
 
