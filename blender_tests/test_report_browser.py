@@ -28,7 +28,7 @@ SORT = "rows.forEach(function (r) { tb.appendChild(r); });"
 
 @pytest.fixture(scope="module")
 def run_dir(tmp_path_factory):
-    """gi_compare's output of AUTO, SSDO and DIRECT on cornell (24 px, Cycles only)."""
+    """gi_compare's output of SSR, SSDO and DIRECT on cornell (24 px, Cycles only)."""
     pytest.importorskip("bpy")
     import importlib.util
     tmp = tmp_path_factory.mktemp("report_browser")
@@ -38,7 +38,7 @@ def run_dir(tmp_path_factory):
     spec.loader.exec_module(mod)
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("XDG_CACHE_HOME", str(tmp / "cache"))
-        mp.setattr(sys, "argv", [str(SCRIPT), "cornell", "--techniques", "AUTO,SSDO,DIRECT", "--res", "24",
+        mp.setattr(sys, "argv", [str(SCRIPT), "cornell", "--techniques", "SSR,SSDO,DIRECT", "--res", "24",
                                  "--ref-spp", "16", "--frames", "1", "--quality", "0", "--reference", "full",
                                  "--baselines", "none", "--cycles-curve", "1,2,4",
                                  "--cache", str(tmp / "refs"), "--out", str(out)])
@@ -76,20 +76,20 @@ def _summary_rows(dom: str) -> list[str]:
 def test_report_in_browser(run_dir, tmp_path):
     res = json.loads((run_dir / "results.json").read_text())
     entries = {e["technique"]: e for e in res["entries"] if e["reference"] == "full"}
-    assert set(entries) == {"AUTO", "SSDO", "DIRECT"}
+    assert set(entries) == {"SSR", "SSDO", "DIRECT"}
     dom, err = _browse(run_dir / "report.html", tmp_path)
     assert _console(err) == []
     attrs = _body_attrs(dom)
     assert "data-errors" not in attrs, attrs["data-errors"]
     assert attrs.get("data-selftest") == "ok", attrs.get("data-selftest")
-    # one row per distinct image: AUTO runs SSDO's passes on cornell (no glossy surface, so its
-    # reflection passes are skipped), so the two share a row that says why
+    # one row per distinct image: cornell has no glossy surface, so SSR skips its reflection
+    # passes and gives DIRECT's image; the two share a row that says why
     rows = _summary_rows(dom)
     distinct = {e["image_sha256"] for e in entries.values()}
-    assert int(attrs["data-summary-rows"]) == len(rows) == len(distinct)
-    if entries["AUTO"]["image_sha256"] == entries["SSDO"]["image_sha256"]:
-        folded = [r for r in rows if "AUTO q0" in r and "SSDO q0" in r]
-        assert len(folded) == 1 and "no glossy surface in view" in folded[0], rows
+    assert entries["SSR"]["image_sha256"] == entries["DIRECT"]["image_sha256"] != entries["SSDO"]["image_sha256"]
+    assert int(attrs["data-summary-rows"]) == len(rows) == len(distinct) == 2
+    folded = [r for r in rows if "SSR q0" in r and "DIRECT q0" in r]
+    assert len(folded) == 1 and "no glossy surface in view" in folded[0], rows
     # the self-check left the table sorted by relMSE, descending
     rel = [float(re.findall(r'<td data-v="([^"]*)"', r)[0]) for r in rows]  # the first numeric column
     assert rel == sorted(rel, reverse=True)

@@ -126,17 +126,20 @@ def test_procedural_world_pt_matches_cycles():
 
 
 def test_every_technique_under_an_hdri():
-    """Finite, and never worse than DIRECT against Cycles full (DIRECT has no indirect light)."""
+    """Finite, and never worse than DIRECT against Cycles full (DIRECT has no indirect light).
+    8 samples each; the two unfiltered Monte Carlo estimators (PT, RESTIR_DI) take 32, since at
+    8 their noise alone comes within 5 % of DIRECT's missing indirect light (PT 0.0845,
+    RESTIR_DI 0.0855, DIRECT 0.0809)."""
     sc = SW.hdri_scene("courtyard", res=32, roof=True)
     data = export(sc)
     R.ensure_oiio()
     full = R.get_reference(sc, "full", 256).image[..., :3]
-    base = metrics.relmse(session.render(data, "DIRECT", 1, 16).image[..., :3], full)
+    base = metrics.relmse(session.render(data, "DIRECT", 1, 8).image[..., :3], full)
     rows = []
     for tech in [t.id for t in techniques.available()]:
         if tech == "DIRECT":
             continue
-        img = session.render(data, tech, 1, 16).image[..., :3]
+        img = session.render(data, tech, 1, 32 if tech in ("PT", "RESTIR_DI") else 8).image[..., :3]
         assert np.isfinite(img).all(), tech
         e = metrics.relmse(img, full)
         rows.append((tech, e, float(img.mean() / full.mean())))

@@ -1,9 +1,9 @@
 """Small EXR/PNG I/O through OpenImageIO (bpy-free).
 
 OpenImageIO ships with Blender. Inside Blender it is importable as is; with the PyPI ``bpy``
-module it becomes importable only after ``bpy.utils.expose_bundled_modules()``, which the
-caller (the Blender layer or a script) must have run: this module never imports bpy.
-:func:`oiio` tries the import once and raises a clear error otherwise.
+module it becomes importable only after ``bpy.utils.expose_bundled_modules()``. This module
+never imports bpy: where a caller has loaded it already, :func:`oiio` exposes the bundled
+modules itself; otherwise it raises a clear error.
 
 Orientation: arrays follow Blender's convention, **row 0 = bottom row**. Image files store
 the top row first, so every function here flips rows on write and on read
@@ -12,6 +12,7 @@ the top row first, so every function here flips rows on write and on read
 from __future__ import annotations
 
 import os
+import sys
 
 import numpy as np
 
@@ -28,13 +29,30 @@ def oiio():
     if _OIIO is None:
         try:
             import OpenImageIO  # noqa: N813
-        except ImportError as e:
+        except ImportError:
+            OpenImageIO = _bundled_oiio()
+        if OpenImageIO is None:
             raise ImportError(
                 "OpenImageIO is not importable. It ships with Blender; with the PyPI bpy module "
                 "call bpy.utils.expose_bundled_modules() before using gi_preview.compare.imageio."
-            ) from e
+            )
         _OIIO = OpenImageIO
     return _OIIO
+
+
+def _bundled_oiio():
+    """Blender's own OpenImageIO where bpy is loaded (the PyPI bpy module keeps it hidden
+    until ``bpy.utils.expose_bundled_modules()``), else None."""
+    bpy = sys.modules.get("bpy")
+    expose = getattr(getattr(bpy, "utils", None), "expose_bundled_modules", None)
+    if expose is None:
+        return None
+    expose()
+    try:
+        import OpenImageIO  # noqa: N813
+    except ImportError:
+        return None
+    return OpenImageIO
 
 
 def _write(path: str, arr: np.ndarray, fmt: str, attrs: dict):
