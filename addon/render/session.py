@@ -251,8 +251,9 @@ class Session:
             k = self.acc_count
             # jitter: the accumulation index, so a render that does not continue an accumulation
             # (an animation frame, a moved viewport frame) is at the pixel centre; warm-up frames
-            # take the running counter
-            jx, jy = _r2(self.sample_counter if is_warm else k)
+            # take the running counter where history is kept, and their own index in a fresh
+            # render (so F12 twice gives the same image)
+            jx, jy = _r2((self.sample_counter if keep_history else warm_done) if is_warm else k)
             jit = np.eye(4)
             jit[0, 3] = 2.0 * jx / size[0]
             jit[1, 3] = 2.0 * jy / size[1]

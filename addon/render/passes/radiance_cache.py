@@ -124,6 +124,10 @@ class RadianceCacheUpdatePass(Pass):
     def reset_history(self):
         super().reset_history()
         self._clear_entries = True
+        # the entries go with the counter their ages are kept in: a render that starts over
+        # (F12) then draws the same random numbers as the last one did
+        self.cache.frame = 0
+        self._settle = 0
 
     def execute(self, rc, frame):
         cache = self.cache

@@ -125,6 +125,10 @@ class _SPPass(Pass):
         self.provides = frozenset(provides)
         self.name = f"{probes.prefix}_{self.stage}"
 
+    def reset_history(self):
+        super().reset_history()
+        self._settle = 0  # radiance_cache.settling: a render that starts over settles as the last one did
+
     def tiled(self, name, per_tile=1, **kw):
         return Res(name, tile=self.probes.tile, per_tile=per_tile, **kw)
 
@@ -164,6 +168,10 @@ class ScreenProbePlacePass(_SPPass):
         sp = self.probes
         return (self.tiled(sp.pos, history=True), self.tiled(sp.nrm, history=True),
                 self.tiled(sp.src, components=1, dtype="i4", check="none"))
+
+    def reset_history(self):
+        super().reset_history()
+        self.probes.frame = 0  # the probes start over: their refresh pattern and rays with them
 
     def execute(self, rc, frame):
         sp = self.probes

@@ -107,6 +107,10 @@ class _SurfelPass(Pass):
         self.surfels = surfels
         self.provides = SURFEL_PROVIDES
 
+    def reset_history(self):
+        super().reset_history()
+        self._settle = 0  # radiance_cache.settling: a render that starts over settles as the last one did
+
     def program(self, rc, shader, *, rt=False):
         d = self.surfels.defines()
         if rt:
@@ -140,6 +144,7 @@ class SurfelPreparePass(_SurfelPass):
     def reset_history(self):
         super().reset_history()
         self._empty = True
+        self.surfels.frame = 0  # the pool empties: ages and spawn seeds start over with it
 
     def execute(self, rc, frame):
         sf = self.surfels
