@@ -254,30 +254,27 @@ def test_first_frame_ranks_by_intensity_over_distance(many_lights, validating):
 
 # their world-space hash caches take entries in the order the GPU's threads insert them, so a
 # cell's slot (and the rays it traces) is a race; two renders agree closely, not bit for bit
+# (relMSE between them 0.0005-0.0013 here; a cache that kept its frame counter: 0.128)
 HASH_CACHE = ("GI10", "SCREEN_PROBES")
 
 
 def test_f12_twice_gives_the_same_image(cornell):
-    """Two fresh renders in one session, with a viewport-style frame between them (history
-    kept, the running sample counter advanced): the same image. Before, the warm-up frames
-    took the session's running counter as their jitter and the caches kept their frame
-    counters, so the second F12 of RESTIR_DI/RESTIR_GI/SVGF/TAA/SURFEL differed from the first
-    by up to 2.5 (courtyard pavilion; RESTIR_GI relMSE 0.06-0.14 against Cycles by run)."""
+    """Two fresh renders in the F12 session, with a viewport-style frame between them
+    (history kept, the running sample counter advanced): the same image. Before, the warm-up
+    frames took the session's running counter as their jitter and the caches kept their
+    frame counters, so the second F12 of RESTIR_DI/RESTIR_GI/SVGF/TAA/SURFEL differed from
+    the first by up to 2.7 (RESTIR_GI on the courtyard pavilion: relMSE 0.06-0.14 against
+    Cycles, by what ran before)."""
     different = []
-    try:
-        for tech in [t.id for t in techniques.available()]:
-            a = session.render(cornell, tech, 0, 2, session="determinism").image
-            session.render(cornell, tech, 0, 1, session="determinism", keep_history=True)
-            b = session.render(cornell, tech, 0, 2, session="determinism").image
-            assert np.isfinite(a).all() and np.isfinite(b).all(), tech
-            if tech in HASH_CACHE:
-                e = metrics.relmse(b, a)
-                if not e <= 1e-3:
-                    different.append((tech, e))
-            elif not np.array_equal(a, b):
-                different.append((tech, float(np.abs(a - b).max())))
-    finally:
-        fut = session.release_session("determinism")
-        if fut is not None:
-            fut.result()
+    for tech in [t.id for t in techniques.available()]:
+        a = session.render(cornell, tech, 0, 2).image
+        session.render(cornell, tech, 0, 1, keep_history=True)
+        b = session.render(cornell, tech, 0, 2).image
+        assert np.isfinite(a).all() and np.isfinite(b).all(), tech
+        if tech in HASH_CACHE:
+            e = metrics.relmse(b, a)
+            if not e <= 0.01:
+                different.append((tech, e))
+        elif not np.array_equal(a, b):
+            different.append((tech, float(np.abs(a - b).max())))
     assert not different, different
