@@ -101,6 +101,33 @@ def test_sampling_tables_are_consistent():
     assert near_sun.mean() > 0.5, near_sun.mean()
 
 
+def test_world_light_directions_estimate_the_irradiance():
+    """The directions the world light's shadow maps and reflective shadow maps take
+    (world_map.world_light_directions): over the frames of an accumulation, sum_k L/(k pdf)
+    max(0, n.w) converges to the irradiance E(n), for a map with a small sun and for a
+    uniform world (pi x its colour)."""
+    from gi_preview.render.scene_data import World
+    from gi_preview.render.world_map import world_light_directions
+
+    H, W = 64, 128
+    px = np.full((H, W, 3), 0.2, np.float32)
+    px[44:46, 30:32] = (800.0, 700.0, 500.0)
+    d_q = directions(W, H).reshape(-1, 3)
+    w_q = np.broadcast_to(np.asarray(pixel_solid_angles(W, H)).reshape(H, -1), (H, W)).reshape(-1)
+    for world in (World(color=np.array([0.3, 0.5, 0.7], np.float32)), World(color=px.reshape(-1, 3).mean(0), map=px)):
+        for n in (np.array([0.0, 0.0, 1.0]), np.array([0.0, 0.0, -1.0]), np.array([0.6, 0.0, 0.8])):
+            if world.map is None:
+                exact = np.pi * np.asarray(world.color, np.float64)
+            else:
+                exact = (px.reshape(-1, 3) * (np.maximum(d_q @ n, 0.0) * w_q)[:, None]).sum(0)
+            est = np.zeros(3)
+            frames, k = 256, 8
+            for i in range(frames):
+                om, L, pdf = world_light_directions(world, k, i)
+                est += (L / (k * pdf[:, None]) * np.maximum(om @ n, 0.0)[:, None]).sum(0)
+            np.testing.assert_allclose(est / frames, exact, rtol=0.05, err_msg=f"{world.source} n={n}")
+
+
 @pytest.mark.parametrize("hdri", SW.HDRIS)
 def test_bundled_hdri_pt_and_direct_match_cycles(hdri):
     sc = SW.hdri_scene(hdri, res=RES)

@@ -197,6 +197,9 @@ SETTINGS = (
             (("ssr_trace", "max_distance"),), ("SSR", "RTXGI_SSR", "AUTO"), "FLOAT", 1000.0, 100.0, "DISTANCE"),
     Setting("rsm_resolution", "Map Resolution", "Texels along each side of a light's reflective shadow map",
             (("rsm", "rsm_resolution"),), ("RSM",), max=1024, soft_max=512),
+    Setting("rsm_world_directions", "Sky Directions", "Directions of the world light rendered as reflective shadow "
+            "maps each frame, so that sky-lit surfaces bounce light (more: smoother, slower)",
+            (("rsm", "world_directions"),), ("RSM", "LPV"), max=24, soft_max=16),
     Setting("rsm_samples", "Samples", "Light samples gathered per pixel per frame",
             (("rsm_gather", "vpl_samples"),), ("RSM",), max=1024, soft_max=256),
     Setting("restir_candidates", "Light Candidates", "Lights tried per pixel per frame before one is kept",

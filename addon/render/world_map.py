@@ -270,6 +270,37 @@ def world_map_of(world) -> WorldMap | None:
     return wm
 
 
+def halton(i: int, b: int) -> float:
+    """The radical inverse of ``i`` in base ``b`` (the Halton sequence)."""
+    f, r = 1.0, 0.0
+    while i > 0:
+        f /= b
+        r += f * (i % b)
+        i //= b
+    return r
+
+
+def world_light_directions(world, k: int, index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``k`` directions towards the world light for frame ``index`` of an accumulation:
+    stratified in one coordinate and rotated by a Halton offset per frame, drawn by the map's
+    luminance (a uniform world: uniformly on the sphere). Returns the directions (k, 3)
+    pointing at the sky, their radiance (k, 3) and solid-angle pdfs (k,), so that
+    ``L / (k · pdf)`` summed over them estimates the world's irradiance integral. The shadow
+    maps of the world light (DIRECT) and its reflective shadow maps (RSM, LPV) draw their
+    directions here."""
+    jx, jy = halton(index + 1, 2), halton(index + 1, 3)
+    us = np.array([[(i + jx) / k, (i * 0.61803398875 + jy) % 1.0] for i in range(k)]).reshape(-1, 2)
+    wm = world_map_of(world)
+    if wm is not None:
+        omegas, pdf = wm.sample(us)
+        return omegas, np.asarray(wm.radiance(omegas), np.float64), np.asarray(pdf, np.float64)
+    z = 1.0 - 2.0 * us[:, 0]
+    r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+    omegas = np.stack([r * np.cos(2 * np.pi * us[:, 1]), r * np.sin(2 * np.pi * us[:, 1]), z], axis=-1)
+    color = np.broadcast_to(np.asarray(world.color, np.float64)[:3], (len(omegas), 3))
+    return omegas, np.array(color), np.full(len(omegas), 1.0 / (4.0 * np.pi))
+
+
 class WorldGPU:
     """The world's GPU resources of one GL context: the map texture (mipmapped, RGBA32F) and
     the uniforms of lib/world.glsl. The sampling tables travel in the ray tracer's light

@@ -4,7 +4,8 @@
 //   perspective view (point, spot, area from its centre): Φ = ρ_d(NoL) · I(ω) · dω,
 //     dω = t² cos³α (t: texel size on the unit image plane, α: angle to the view axis);
 //     I = intensity (W/sr) · spot cone, or for an area light L_e · A · max(0, cos θ_L);
-//   orthographic view (sun): Φ = ρ_d(NoL) · E · A_texel.
+//   orthographic view (sun): Φ = ρ_d(NoL) · E · A_texel; a view of the world light
+//     (u_light < 0) has its E in u_world_e (passes/rsm.py world_views).
 // The first surface along each texel is the one the light reaches (no visibility needed).
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
@@ -24,7 +25,8 @@ uniform sampler2DArray u_textures;
 uniform int u_material_count;
 uniform int u_alpha_test;
 uniform int u_alpha_seed;
-uniform int u_light;
+uniform int u_light;        // < 0: a view of the world light
+uniform vec3 u_world_e;     // its irradiance at normal incidence
 uniform vec3 u_origin;
 uniform vec3 u_fwd;
 uniform int u_ortho;
@@ -37,7 +39,6 @@ layout(location = 2) out vec4 o_flux;
 void main() {
     int mid = (v_material >= 0 && v_material < u_material_count) ? v_material : u_material_count;
     Material m = materials[mid];
-    Light L = lights[u_light];
     vec3 toL = u_ortho == 1 ? -u_fwd : normalize(u_origin - v_world);
     vec3 n = normalize(v_normal);
     if (dot(n, toL) < 0.0) n = -n;
@@ -52,13 +53,14 @@ void main() {
     vec3 flux;
     float area;  // the texel's surface area (the LPV geometry volume's blockers)
     if (u_ortho == 1) {
-        flux = rho * L.color.rgb * (u_texel * u_texel);
+        vec3 E = u_light >= 0 ? lights[u_light].color.rgb : u_world_e;
+        flux = rho * E * (u_texel * u_texel);
         area = u_texel * u_texel / max(NoL, 0.05);
     } else {
         vec3 w = normalize(v_world - u_origin);
         float ca = max(dot(w, u_fwd), 1e-4);
         float domega = u_texel * u_texel * ca * ca * ca;
-        flux = rho * light_intensity(L, w) * domega;
+        flux = rho * light_intensity(lights[u_light], w) * domega;
         vec3 dv = v_world - u_origin;
         area = domega * dot(dv, dv) / max(NoL, 0.05);
     }

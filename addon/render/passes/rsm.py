@@ -14,7 +14,12 @@
   texel size on the unit image plane, α the angle to the view axis); area lights (from
   their centre) ``I(ω) = L_e A max(0, cos θ_L)``; sun ``Φ = ρ_d · E · A_texel``. ρ_d is the
   diffuse albedo of the Principled layer at the light's incidence (lib/albedo.glsl).
-  Mesh lights and the world are not injected (the planner reports it).
+  The world light (its sky; a sun taken out of the map is a sun light above) gets
+  ``world_directions`` orthographic views per frame along directions drawn by the map's
+  luminance (world_map.world_light_directions, rotated every frame of an accumulation),
+  each a sun of irradiance ``E = L(ω) / (K p(ω))``: their sum over the frames estimates the
+  sky's irradiance integral, so the sky-lit surfaces become VPLs. Mesh lights are not
+  injected (the planner reports it).
 * ``RSMGatherPass`` (compute): one bounce of indirect diffuse from the VPLs. Samples are
   placed in a disk of radius ``radius`` (fraction of the map) around the receiver's
   projection by ξ1 (r = radius·ξ1) and weighted by ξ1² (the paper; normalised so that a
@@ -51,6 +56,7 @@ import numpy as np
 from ..framegraph import CAMERA_CUT, HOST, PARAM_CHANGE, Effect, FrameGraph, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from ..scene_data import LightType
+from ..world_map import world_light_directions
 from .gbuffer import GEONORMAL, NORMAL, POSITION
 from .screen_space import GBUFFER_BOUND, TemporalPass, Units, bind_frame, bind_gbuffer, scaled
 from .shadows import CUBE_DIRS, look_at, ortho, perspective
@@ -80,17 +86,24 @@ class LightGatedGraph(FrameGraph):
     def plan(self, needed, reasons=None):
         reasons = dict(reasons or {})
         sc = self._scene
-        if sc is not None and not shadow_lights(sc):
+        if sc is not None and not shadow_lights(sc) and not world_injected(sc, self.passes):
             world_on = sc.world is not None and float(np.max(sc.world.color)) > 0.0
             lights_on = any(float(np.max(L.color)) > 0 for L in sc.lights)
             if world_on and not lights_on:
-                why = "open sky only: the world light is not injected (no light casts shadows)"
+                why = "open sky only, and the RSM's world directions are 0: the world light is not injected"
             else:
-                why = "no light casts shadows (the injected light comes from shadow-casting lights only)"
+                why = "no light casts shadows (the injected light comes from shadow-casting lights and the world)"
             needed = set(needed) - self.gated
             for e in self.gated:
                 reasons[e] = why
         return super().plan(needed, reasons)
+
+
+def world_injected(scene, passes) -> bool:
+    """Does an RSM pass among ``passes`` inject the world light of ``scene``?"""
+    if scene.world is None or float(np.max(scene.world.color)) <= 0.0:
+        return False
+    return any(isinstance(p, RSMPass) and int(p.props.get("world_directions", 0)) > 0 for p in passes)
 
 
 class RSMViews:
@@ -138,6 +151,28 @@ def rsm_views(scene, res: int, sun_extent: float, max_views: int = MAX_RSM_VIEWS
         lv = _light_views(scene.lights[li], li, res, sun_extent, scene.camera, lo, hi, center, radius)
         if len(out) + len(lv) <= max_views:  # whole lights; a light with fewer views may still fit
             out += lv
+    return out
+
+
+def world_views(scene, k: int, index: int, res: int) -> list[dict]:
+    """``k`` orthographic views of the world light for frame ``index`` (module docstring):
+    each covers the scene's bounds, looks along the light's travel and carries ``e``, the
+    irradiance its texels receive at normal incidence."""
+    if k <= 0 or scene.world is None or float(np.max(scene.world.color)) <= 0.0:
+        return []
+    lo, hi = (np.asarray(v, np.float64) for v in scene.world_bounds())
+    center = 0.5 * (lo + hi)
+    radius = max(float(np.linalg.norm(hi - lo)) * 0.5, 1e-3)
+    omegas, L, pdf = world_light_directions(scene.world, k, index)
+    out = []
+    for omega, l, p in zip(omegas, L, pdf):
+        if not p > 0.0:
+            continue
+        d = -np.asarray(omega, np.float64)  # the direction light travels
+        eye = center - d * (2.0 * radius)
+        vp = ortho(radius * 1.02, 0.0, 4.0 * radius) @ look_at(eye, d, (0, 0, 1))
+        out.append({"vp": vp, "origin": eye, "ortho": 1.0, "fwd": d, "texel": 2.0 * radius * 1.02 / res,
+                    "light": -1, "e": np.asarray(l, np.float64) / (k * float(p))})
     return out
 
 
@@ -189,9 +224,11 @@ class RSMPass(Pass):
     params = (
         Param("rsm_resolution", 128, 16, 1024, "texels per side of one RSM view"),
         Param("sun_extent", 0.0, 0.0, 1e5, "sun RSM: half size of the region around the camera (0 = whole scene)"),
+        Param("world_directions", 4, 0, MAX_RSM_VIEWS, "world light: orthographic views per frame along directions drawn "
+              "by the map's luminance (0 = the sky adds no bounce)"),
     )
-    quality_ladder = ({"rsm_resolution": 64}, {"rsm_resolution": 128}, {"rsm_resolution": 256},
-                      {"rsm_resolution": 512})
+    quality_ladder = ({"rsm_resolution": 64, "world_directions": 2}, {"rsm_resolution": 128},
+                      {"rsm_resolution": 256, "world_directions": 8}, {"rsm_resolution": 512, "world_directions": 8})
 
     def __init__(self, quality=None, **props):
         super().__init__(quality, **props)
@@ -227,6 +264,11 @@ class RSMPass(Pass):
         n_lights, n_in = len(shadow_lights(scene)), len({v["light"] for v in views})
         self.notes = ([f"RSM: {n_in} of {n_lights} shadow-casting lights injected (atlas of {MAX_RSM_VIEWS} views, "
                        "brightest first); the others add no bounce"] if n_in < n_lights else [])
+        k_world = int(self.props.get("world_directions", 0))
+        wv = world_views(scene, min(k_world, MAX_RSM_VIEWS - len(views)), frame.index, res)
+        if k_world > 0 and wv and len(wv) < k_world:
+            self.notes.append(f"RSM: {len(wv)} of {k_world} world directions fit in the atlas of {MAX_RSM_VIEWS} views")
+        views += wv
         cols = self._ensure(rc, len(views), res)
         self.views = RSMViews(views, cols, res)
         rc.resources[RSM_VIEWS] = self.views
@@ -246,6 +288,7 @@ class RSMPass(Pass):
             set_uniform(prog, "u_ortho", int(v["ortho"]))
             set_uniform(prog, "u_texel", float(v["texel"]))
             set_uniform(prog, "u_light", int(v["light"]))
+            set_uniform(prog, "u_world_e", tuple(float(x) for x in v.get("e", (0.0, 0.0, 0.0))))
             rc.scene.draw(prog)
         ctx.disable(moderngl.DEPTH_TEST)
 

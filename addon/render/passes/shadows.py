@@ -27,7 +27,7 @@ import numpy as np
 from ..framegraph import BUFFER, HOST, PREV, Effect, Param, Pass, Res
 from ..gpu_scene import LIGHT_MESH, set_uniform
 from ..scene_data import LightType
-from ..world_map import world_map_of
+from ..world_map import halton, world_light_directions
 from .light_cull import LIGHT_CULL, TILE_BOUNDS, scores_from_bounds
 
 ATLAS, VIEWS, WORLD_RANGE = "shadow.atlas", "shadow.views", "shadow.world_range"
@@ -109,15 +109,6 @@ def _behind_area_light(scene, li, vp: np.ndarray, origin, normal) -> bool:
     return True
 
 
-def _halton(i: int, b: int) -> float:
-    f, r = 1.0, 0.0
-    while i > 0:
-        f /= b
-        r += f * (i % b)
-        i //= b
-    return r
-
-
 def first_frame_scores(gpu_scene, camera_position, indices, info: dict | None = None) -> np.ndarray:
     """The budget's ranking without tile bounds: peak intensity (W/sr; light_cull.light_ranges'
     ``intensity`` when known, else the light's colour) over the squared distance to the camera."""
@@ -188,7 +179,7 @@ class ShadowPass(Pass):
     def _sample_origin(self, light_rec, scene, k: int, rng: np.random.Generator):
         """A point on the light for frame k, and the light's normal there (zero if none).
         Frame 0 uses the light's centre (the best single-frame hard shadow)."""
-        u = (_halton(k, 2), _halton(k, 3)) if k > 0 else (0.5, 0.5)
+        u = (halton(k, 2), halton(k, 3)) if k > 0 else (0.5, 0.5)
         if light_rec["type"] == LIGHT_MESH:
             g = light_rec["group"]
             areas = g["areas"]
@@ -207,7 +198,7 @@ class ShadowPass(Pass):
             # uniform in the ball: its projection covers the visible disk of the sphere
             r = L.radius * u[0] ** (1 / 3)
             z = 1 - 2 * u[1]
-            phi = 2 * math.pi * _halton(k + 1, 5)
+            phi = 2 * math.pi * halton(k + 1, 5)
             s = math.sqrt(max(0.0, 1 - z * z))
             return L.position + r * np.array([s * math.cos(phi), s * math.sin(phi), z], np.float32), np.zeros(3)
         if L.type == LightType.AREA:
@@ -224,7 +215,7 @@ class ShadowPass(Pass):
         half = 0.5 * L.angle
         if half <= 1e-5 or k == 0:
             return d
-        u1, u2 = _halton(k + 1, 2), _halton(k + 1, 3)
+        u1, u2 = halton(k + 1, 2), halton(k + 1, 3)
         c = 1 - u1 * (1 - math.cos(half))
         s = math.sqrt(max(0.0, 1 - c * c))
         phi = 2 * math.pi * u2
@@ -267,15 +258,7 @@ class ShadowPass(Pass):
         # (frame 0 included: a fixed, well-spread set)
         K = int(self["world_directions"]) if float(np.max(scene.world.color)) > 0 else 0
         if K:
-            jx, jy = _halton(frame.index + 1, 2), _halton(frame.index + 1, 3)
-            us = np.array([[(k + jx) / K, (k * 0.61803398875 + jy) % 1.0] for k in range(K)])
-            wm = world_map_of(scene.world)
-            if wm is not None:
-                omegas, _ = wm.sample(us)
-            else:
-                z = 1.0 - 2.0 * us[:, 0]
-                r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
-                omegas = np.stack([r * np.cos(2 * np.pi * us[:, 1]), r * np.sin(2 * np.pi * us[:, 1]), z], axis=-1)
+            omegas, _, _ = world_light_directions(scene.world, K, frame.index)
             for k in range(K):
                 omega = omegas[k]
                 d = -omega  # the direction light travels
