@@ -264,9 +264,9 @@ class RSMPass(Pass):
         n_lights, n_in = len(shadow_lights(scene)), len({v["light"] for v in views})
         self.notes = ([f"RSM: {n_in} of {n_lights} shadow-casting lights injected (atlas of {MAX_RSM_VIEWS} views, "
                        "brightest first); the others add no bounce"] if n_in < n_lights else [])
-        k_world = int(self.props.get("world_directions", 0))
+        k_world = int(self.props.get("world_directions", 0)) if world_injected(scene, (self,)) else 0
         wv = world_views(scene, min(k_world, MAX_RSM_VIEWS - len(views)), frame.index, res)
-        if k_world > 0 and wv and len(wv) < k_world:
+        if len(wv) < k_world:
             self.notes.append(f"RSM: {len(wv)} of {k_world} world directions fit in the atlas of {MAX_RSM_VIEWS} views")
         views += wv
         cols = self._ensure(rc, len(views), res)

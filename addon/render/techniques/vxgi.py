@@ -80,17 +80,11 @@ class VXGI(Technique):
 
     def passes(self, quality):
         return [GBufferPass(quality), LightCullPass(quality), ShadowPass(quality), DirectLightPass(quality),
-                LightRSMPass(quality), *vxgi_passes(quality)]
+                # the RSM views of the lights only, read as their shadow maps: the world
+                # reaches the voxels through their cones instead
+                RSMPass(quality, world_directions=0), *vxgi_passes(quality)]
 
     graph_class = VXGIGraph
-
-
-class LightRSMPass(RSMPass):
-    """The RSM views of the lights only: VXGI reads them as its lights' shadow maps, and the
-    world reaches its voxels through their cones instead."""
-
-    params = tuple(p for p in RSMPass.params if p.name != "world_directions")
-    quality_ladder = tuple({k: v for k, v in q.items() if k != "world_directions"} for q in RSMPass.quality_ladder)
 
 
 register(VXGI)
