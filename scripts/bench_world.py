@@ -3,7 +3,7 @@
 
     .venv/bin/python scripts/bench_world.py [--scenes hdri:forest,pavilion:courtyard,sky:MULTIPLE_SCATTERING]
         [--techniques PT,DIRECT,...] [--res 48] [--ref-spp 512] [--samples 16] [--pt-samples 64]
-        [--out DIR]
+        [--denoiser AUTO|NONE|ATROUS|SVGF] [--out DIR]
 
 Output folder ``--out``: default ``out/bench/world/``. The documentation's world results
 (docs/results/world/, linked from its README.md) are regenerated on purpose with
@@ -11,7 +11,7 @@ Output folder ``--out``: default ``out/bench/world/``. The documentation's world
     .venv/bin/python scripts/bench_world.py --scenes all --res 40 --ref-spp 512 --samples 16 \
         --pt-samples 64 --out docs/results/world
 
-(about 25 minutes on 2 cores; then delete docs/results/world/results.json, which no page
+(about 12 minutes on 2 cores; then delete docs/results/world/results.json, which no page
 links, and update the numbers README.md quotes).
 
 Scenes (``blender_tests/scenes_world.py``): ``hdri:NAME`` (one of the eight HDRIs Blender
@@ -24,8 +24,11 @@ the eight HDRIs, the four sky types, the gradient and the pavilion under courtya
 
 For every scene: the world's evaluation time (Cycles, once; cached afterwards), the Cycles
 references "full" and "direct", and for every technique an F12-style render of
-``--samples`` frames (PT ``--pt-samples``): relMSE against full (DIRECT also against
-direct), the image mean over Cycles' and the median frame time. Times are those of this
+``--samples`` frames (PT ``--pt-samples``), each with the filter ``--denoiser`` names (default
+AUTO, the panel's Technique Default: RESTIR_GI ends in SVGF, the others unfiltered): relMSE
+against full (DIRECT also against direct), the image mean over Cycles' and the median frame
+time. summary.md marks in bold each cell worse than DIRECT's against full (DIRECT has no
+indirect light, so a technique above it makes the image worse than having none). Times are those of this
 machine's OpenGL (llvmpipe on a machine without a GPU): compare them as ratios.
 
 Writes ``<out>/results.json``, ``<out>/summary.md`` (with the command that made it) and per
@@ -86,6 +89,8 @@ def main(argv=None):
     p.add_argument("--ref-spp", type=int, default=512)
     p.add_argument("--samples", type=int, default=16)
     p.add_argument("--pt-samples", type=int, default=64)
+    p.add_argument("--denoiser", default="AUTO", choices=("AUTO", "NONE", "ATROUS", "SVGF"),
+                   help="the filter after each technique (AUTO: the technique's default, as the panel's default)")
     p.add_argument("--out", default=os.path.join(REPO, "out", "bench", "world"),
                    help="output folder (default: out/bench/world; the docs' results: docs/results/world)")
     a = p.parse_args(argv)
@@ -107,7 +112,7 @@ def main(argv=None):
     scenes = (ALL if a.scenes == "all" else a.scenes).split(",")
     os.makedirs(a.out, exist_ok=True)
     results = {"res": a.res, "ref_spp": a.ref_spp, "samples": a.samples, "pt_samples": a.pt_samples,
-               "device": None, "scenes": {}}
+               "denoiser": a.denoiser, "device": None, "scenes": {}}
     for spec in scenes:
         sc = build(spec, a.res)
         t0 = time.perf_counter()
@@ -122,7 +127,7 @@ def main(argv=None):
         for tech in techs:
             n = a.pt_samples if tech == "PT" else a.samples
             try:
-                r = session.render(data, tech, 1, n)
+                r = session.render(data, tech, 1, n, denoiser=a.denoiser)
             except Exception as exc:  # noqa: BLE001 - one technique failing is a row, not the end
                 row["techniques"][tech] = {"error": repr(exc)}
                 log(f"  {tech}: error {exc!r}")
@@ -165,34 +170,53 @@ def command_line(a) -> str:
     rel = os.path.relpath(out, REPO)
     args = [f"--scenes {a.scenes}"] + ([f"--techniques {a.techniques}"] if a.techniques else []) + [
         f"--res {a.res}", f"--ref-spp {a.ref_spp}", f"--samples {a.samples}", f"--pt-samples {a.pt_samples}",
+        *([f"--denoiser {a.denoiser}"] if a.denoiser != "AUTO" else []),
         f"--out {out if rel.startswith('..') else rel}"]
     return ".venv/bin/python scripts/bench_world.py " + " ".join(args)
+
+
+def _denoiser_words(d: str) -> str:
+    if d == "AUTO":
+        return "the panel's default does (Technique Default: RESTIR_GI through SVGF, the rest unfiltered)"
+    return "nothing (the raw estimators)" if d == "NONE" else f"{d} after every technique"
 
 
 def write_summary(results, techs, path, command="scripts/bench_world.py"):
     scenes = list(results["scenes"])
     lines = [f"# Techniques under HDRI, sky and procedural worlds, against Cycles", "",
              f"{results['res']}×{results['res']} px; Cycles references at {results['ref_spp']} spp (box filter, "
-             f"no denoising); every technique accumulates {results['samples']} frames (PT {results['pt_samples']}). "
+             f"no denoising); every technique accumulates {results['samples']} frames (PT {results['pt_samples']}), "
+             f"filtered as {_denoiser_words(results.get('denoiser', 'NONE'))}. "
              f"relMSE against Cycles full (DIRECT: also against Cycles direct, in brackets); the second figure "
-             f"is the image mean over Cycles'. Frame times are those of "
+             f"is the image mean over Cycles'. **Bold**: worse than DIRECT against full. Frame times are those of "
              f"`{results.get('device') or 'this machine'}`: compare them as ratios, not as milliseconds.", "",
              f"Made by `{command}`. Per scene, `<scene>.png` shows one row "
              "per technique (in the order of the table, top to bottom): ours | Cycles | error ×4.", ""]
     lines.append("| technique | " + " | ".join(scenes) + " |")
     lines.append("|---|" + "---|" * len(scenes))
+    worse = []
     for t in techs:
         cells = []
         for s in scenes:
-            rec = results["scenes"][s]["techniques"].get(t)
+            recs = results["scenes"][s]["techniques"]
+            rec = recs.get(t)
             if rec is None:
                 cells.append("—")
             elif "error" in rec:
                 cells.append("error")
             else:
                 extra = f" ({rec['relmse_direct']:.3f})" if "relmse_direct" in rec else ""
-                cells.append(f"{rec['relmse_full']:.3f}{extra} / {rec['mean_ratio']:.2f}")
+                cell = f"{rec['relmse_full']:.3f}{extra} / {rec['mean_ratio']:.2f}"
+                base = recs.get("DIRECT", {}).get("relmse_full")
+                if t != "DIRECT" and base is not None and rec["relmse_full"] > base:
+                    worse.append(f"{t} on {s} ({rec['relmse_full']:.4f} > {base:.4f})")
+                    cell = f"**{cell}**"
+                cells.append(cell)
         lines.append(f"| {t} | " + " | ".join(cells) + " |")
+    n_cells = sum(1 for s in scenes for t, r in results["scenes"][s]["techniques"].items()
+                  if t != "DIRECT" and "error" not in r)
+    lines += ["", f"Worse than DIRECT against full: {len(worse)} of {n_cells} cells"
+              + (": " + "; ".join(worse) + "." if worse else ".")]
     lines += ["", "Export time includes evaluating the world with Cycles unless its map was already cached "
               "(on this machine a first evaluation takes 5–8 s).", "",
               "| scene | world | export (ms) | Cycles full (ms) |", "|---|---|---|---|"]
