@@ -49,7 +49,7 @@ def direction_to_uv(d: np.ndarray) -> np.ndarray:
     d = np.asarray(d, np.float64)
     d = d / np.maximum(np.linalg.norm(d, axis=-1, keepdims=True), 1e-30)
     u = 0.5 - np.arctan2(d[..., 1], d[..., 0]) / (2.0 * np.pi)
-    v = 0.5 + np.arcsin(np.clip(d[..., 2], -1.0, 1.0)) / np.pi
+    v = 0.5 + np.arctan2(d[..., 2], np.hypot(d[..., 0], d[..., 1])) / np.pi
     return np.stack([u % 1.0, v], axis=-1)
 
 
@@ -167,7 +167,8 @@ class WorldMap:
                       for ri, ui in zip(r, u[:, 1])], np.int64)
         c0 = np.where(c > 0, self.conditional[r, np.maximum(c - 1, 0)], 0.0)
         fx = (u[:, 1] - c0) / np.maximum(self.conditional[r, c] - c0, 1e-30)
-        uv = np.stack([(c + np.clip(fx, 0, 1)) / gw, (r + np.clip(fy, 0, 1)) / gh], axis=-1)
+        # a thousandth of a cell inside it, as world_sample keeps it (world_pdf finds the cell again)
+        uv = np.stack([(c + np.clip(fx, 1e-3, 1 - 1e-3)) / gw, (r + np.clip(fy, 1e-3, 1 - 1e-3)) / gh], axis=-1)
         d = uv_to_direction(uv)
         return d, self.pdf(d)
 

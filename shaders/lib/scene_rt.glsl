@@ -205,7 +205,11 @@ vec3 world_sample(vec2 u, out float pdf) {
     int col = world_cdf_search(c, gw, u.y);
     float c0 = col > 0 ? rt_light_select[c + col - 1] : 0.0;
     float fx = (u.y - c0) / max(rt_light_select[c + col] - c0, 1e-30);
-    vec2 uv = vec2((float(col) + clamp(fx, 0.0, 1.0)) / float(gw), (float(row) + clamp(fy, 0.0, 1.0)) / float(gh));
+    // the point stays a thousandth of a cell inside its cell, so that world_pdf, which finds
+    // the cell again from the direction through world_uv's arc tangents, finds the same one
+    // (at the edge itself float rounding could hand it the neighbour's probability)
+    vec2 f = clamp(vec2(fx, fy), vec2(1e-3), vec2(1.0 - 1e-3));
+    vec2 uv = vec2((float(col) + f.x) / float(gw), (float(row) + f.y) / float(gh));
     float ce = max(cos(PI * (uv.y - 0.5)), 1e-6);
     pdf = world_cell_prob(row, col) * float(gw * gh) / (2.0 * PI * PI * ce);
     return world_uv_to_dir(uv);

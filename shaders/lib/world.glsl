@@ -18,9 +18,11 @@ uniform vec3 u_world_sh[9];     // irradiance SH coefficients (map only)
 uniform float u_world_lods;     // highest mip level of the map
 uniform int u_film_transparent; // 1: the camera sees no world (Render > Film > Transparent)
 
+// v by the arc tangent, not asin(d.z): GPUs' asin is coarse (about 1 % of a sampling cell
+// of the map on llvmpipe), and world_pdf must find the very cell world_sample drew from
 vec2 world_uv(vec3 d) {
     float u = 0.5 - atan(d.y, d.x) * (0.5 * INV_PI);
-    float v = 0.5 + asin(clamp(d.z / max(length(d), 1e-30), -1.0, 1.0)) * INV_PI;
+    float v = 0.5 + atan(d.z, length(d.xy)) * INV_PI;
     return vec2(u, v);
 }
 
