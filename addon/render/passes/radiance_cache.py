@@ -63,6 +63,12 @@ def settling(p: Pass, frame) -> bool:
     return bool(frame.warmup) or left > 0
 
 
+def reset_settling(p: Pass) -> None:
+    """Forget ``p``'s settle window (its history reset): a render that starts over settles
+    as the last one did."""
+    p._settle = 0
+
+
 class RadianceCache:
     """Host side of radiance_cache/common.glsl, shared by the update pass and the readers."""
 
@@ -127,7 +133,7 @@ class RadianceCacheUpdatePass(Pass):
         # the entries go with the counter their ages are kept in: a render that starts over
         # (F12) then draws the same random numbers as the last one did
         self.cache.frame = 0
-        self._settle = 0
+        reset_settling(self)
 
     def execute(self, rc, frame):
         cache = self.cache

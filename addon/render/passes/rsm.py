@@ -59,7 +59,7 @@ from ..scene_data import LightType
 from ..world_map import world_light_directions
 from .gbuffer import GEONORMAL, NORMAL, POSITION
 from .screen_space import GBUFFER_BOUND, TemporalPass, Units, bind_frame, bind_gbuffer, scaled
-from .shadows import CUBE_DIRS, look_at, ortho, perspective
+from .shadows import CUBE_DIRS, look_at, ortho, perspective, world_view
 
 RSM_POS, RSM_NRM, RSM_FLUX, RSM_VIEWS = "rsm.position", "rsm.normal", "rsm.flux", "rsm.views"
 MAX_RSM_VIEWS = 24  # matches RSM_MAX_VIEWS in shaders/raster3d/rsm_common.glsl
@@ -169,8 +169,7 @@ def world_views(scene, k: int, index: int, res: int) -> list[dict]:
         if not p > 0.0:
             continue
         d = -np.asarray(omega, np.float64)  # the direction light travels
-        eye = center - d * (2.0 * radius)
-        vp = ortho(radius * 1.02, 0.0, 4.0 * radius) @ look_at(eye, d, (0, 0, 1))
+        vp, eye = world_view(center, radius, d)
         out.append({"vp": vp, "origin": eye, "ortho": 1.0, "fwd": d, "texel": 2.0 * radius * 1.02 / res,
                     "light": -1, "e": np.asarray(l, np.float64) / (k * float(p))})
     return out

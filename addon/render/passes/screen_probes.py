@@ -35,7 +35,7 @@ import numpy as np
 from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION
-from .radiance_cache import ENTRIES, IRR as CACHE_IRR, RadianceCache, settling
+from .radiance_cache import ENTRIES, IRR as CACHE_IRR, RadianceCache, reset_settling, settling
 from .screen_space import GBUFFER_BOUND, Units, bind_frame, bind_gbuffer
 
 COLOR = "color"
@@ -127,7 +127,7 @@ class _SPPass(Pass):
 
     def reset_history(self):
         super().reset_history()
-        self._settle = 0  # radiance_cache.settling: a render that starts over settles as the last one did
+        reset_settling(self)
 
     def tiled(self, name, per_tile=1, **kw):
         return Res(name, tile=self.probes.tile, per_tile=per_tile, **kw)

@@ -86,6 +86,15 @@ def look_at(eye, forward, up) -> np.ndarray:
     return m
 
 
+def world_view(center, radius: float, d) -> tuple[np.ndarray, np.ndarray]:
+    """An orthographic view of the world light travelling along ``d`` over the scene's
+    bounding sphere (``center``, ``radius``): (view-projection, eye). The world's shadow maps
+    (DIRECT) and its reflective shadow maps (RSM) both look this way; the map's side is
+    2 x 1.02 x radius."""
+    eye = np.asarray(center, np.float64) - np.asarray(d, np.float64) * (2.0 * radius)
+    return ortho(radius * 1.02, 0.0, 4.0 * radius) @ look_at(eye, d, (0, 0, 1)), eye
+
+
 CUBE_DIRS = [((1, 0, 0), (0, 0, 1)), ((-1, 0, 0), (0, 0, 1)), ((0, 1, 0), (0, 0, 1)),
              ((0, -1, 0), (0, 0, 1)), ((0, 0, 1), (0, 1, 0)), ((0, 0, -1), (0, 1, 0))]
 
@@ -262,8 +271,7 @@ class ShadowPass(Pass):
             for k in range(K):
                 omega = omegas[k]
                 d = -omega  # the direction light travels
-                eye = center - d * (2.0 * radius)
-                vp = ortho(radius * 1.02, 0.0, 4.0 * radius) @ look_at(eye, d, (0, 0, 1))
+                vp, eye = world_view(center, radius, d)
                 # world views use a quarter tile (half the resolution): sky visibility is
                 # smooth, and this keeps many directions within the atlas
                 views.append(("world", vp, eye, 1, d, 2.0 * radius * 1.02 / max(32, res // 2), 4.0 * radius))

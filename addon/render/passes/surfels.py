@@ -21,7 +21,7 @@ import numpy as np
 from ..framegraph import BUFFER, CAMERA_CUT, PARAM_CHANGE, SHADER_STORAGE_BARRIER_BIT, Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION
-from .radiance_cache import settling
+from .radiance_cache import reset_settling, settling
 from .screen_space import GBUFFER_BOUND, Units, bind_frame, bind_gbuffer, camera_vectors
 
 COLOR = "color"
@@ -109,7 +109,7 @@ class _SurfelPass(Pass):
 
     def reset_history(self):
         super().reset_history()
-        self._settle = 0  # radiance_cache.settling: a render that starts over settles as the last one did
+        reset_settling(self)
 
     def program(self, rc, shader, *, rt=False):
         d = self.surfels.defines()
