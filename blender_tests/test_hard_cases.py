@@ -36,7 +36,7 @@ ALL = tuple(i.id for i in techniques.available())
 CELLS = {
     "furnace": ALL,
     "black": ALL,
-    "mirror": ("DIRECT", "PT", "SSR", "RESTIR_GI", "RTXGI_SSR"),
+    "mirror": ("DIRECT", "PT", "SSR", "RESTIR_GI", "RTXGI_SSR", "SURFEL"),
     "missing_texture": ("DIRECT", "PT"),
     "thin_wall": ("DIRECT", "RSM", "IRRADIANCE_VOLUME", "DDGI", "RTXGI"),
     "z_fighting": ("DIRECT", "PT"),

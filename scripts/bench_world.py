@@ -3,7 +3,7 @@
 
     .venv/bin/python scripts/bench_world.py [--scenes hdri:forest,pavilion:courtyard,sky:MULTIPLE_SCATTERING]
         [--techniques PT,DIRECT,...] [--res 48] [--ref-spp 512] [--samples 16] [--pt-samples 64]
-        [--denoiser AUTO|NONE|ATROUS|SVGF] [--out DIR]
+        [--denoiser AUTO|NONE|ATROUS|SVGF] [--set PASS.PARAM=VALUE ...] [--out DIR]
 
 Output folder ``--out``: default ``out/bench/world/``. The documentation's world results
 (docs/results/world/, linked from its README.md) are regenerated on purpose with
@@ -17,7 +17,8 @@ links, and update the numbers README.md quotes).
 Scenes (``blender_tests/scenes_world.py``): ``hdri:NAME`` (one of the eight HDRIs Blender
 ships, through an Environment Texture rotated by a Mapping node), ``pavilion:NAME`` (the same
 under a roof and beside a wall, so part of it sees the world only around a corner),
-``sky:TYPE`` (a Sky Texture of that type), ``gradient`` (a procedural world) and
+``sky:TYPE`` (a Sky Texture of that type), ``gradient`` (a procedural world), ``demo:NAME`` (a
+demo scene of addon/blender/demo_scenes.py) and
 ``room:bsdf`` (blender_tests/scenes_real.py: glass, mixes, transparency and translucency in a
 room lit by an area light; every technique is measured there the same way). ``all`` =
 the eight HDRIs, the four sky types, the gradient and the pavilion under courtyard.
@@ -65,6 +66,10 @@ def build(spec: str, res: int):
         return SW.sky_scene(arg or None, res=res)
     if kind == "gradient":
         return SW.gradient_scene(res=res)
+    if kind == "demo":
+        from gi_preview.blender.demo_scenes import build_demo
+
+        return build_demo(arg, resolution=res)
     if kind == "room" and arg in ("", "bsdf"):
         import tempfile
 
@@ -91,9 +96,18 @@ def main(argv=None):
     p.add_argument("--pt-samples", type=int, default=64)
     p.add_argument("--denoiser", default="AUTO", choices=("AUTO", "NONE", "ATROUS", "SVGF"),
                    help="the filter after each technique (AUTO: the technique's default, as the panel's default)")
+    p.add_argument("--set", action="append", default=[], metavar="PASS.PARAM=VALUE",
+                   help="a pass parameter for every technique that has the pass (repeatable)")
     p.add_argument("--out", default=os.path.join(REPO, "out", "bench", "world"),
                    help="output folder (default: out/bench/world; the docs' results: docs/results/world)")
     a = p.parse_args(argv)
+    params: dict = {}
+    for item in a.set:
+        key, _, value = item.partition("=")
+        pass_name, _, param = key.partition(".")
+        if not (pass_name and param and value):
+            raise SystemExit(f"bench_world: --set {item!r}: expected PASS.PARAM=VALUE")
+        params.setdefault(pass_name, {})[param] = float(value)
 
     sys.path.insert(0, HERE)
     sys.path.insert(0, os.path.join(REPO, "blender_tests"))
@@ -127,7 +141,7 @@ def main(argv=None):
         for tech in techs:
             n = a.pt_samples if tech == "PT" else a.samples
             try:
-                r = session.render(data, tech, 1, n, denoiser=a.denoiser)
+                r = session.render(data, tech, 1, n, denoiser=a.denoiser, params=params or None)
             except Exception as exc:  # noqa: BLE001 - one technique failing is a row, not the end
                 row["techniques"][tech] = {"error": repr(exc)}
                 log(f"  {tech}: error {exc!r}")
@@ -170,7 +184,7 @@ def command_line(a) -> str:
     rel = os.path.relpath(out, REPO)
     args = [f"--scenes {a.scenes}"] + ([f"--techniques {a.techniques}"] if a.techniques else []) + [
         f"--res {a.res}", f"--ref-spp {a.ref_spp}", f"--samples {a.samples}", f"--pt-samples {a.pt_samples}",
-        *([f"--denoiser {a.denoiser}"] if a.denoiser != "AUTO" else []),
+        *([f"--denoiser {a.denoiser}"] if a.denoiser != "AUTO" else []), *[f"--set {x}" for x in a.set],
         f"--out {out if rel.startswith('..') else rel}"]
     return ".venv/bin/python scripts/bench_world.py " + " ".join(args)
 

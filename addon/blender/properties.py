@@ -170,6 +170,9 @@ SETTINGS = (
             (("surfel_prepare", "capacity"),), ("SURFEL",), max=262144, soft_max=65536),
     Setting("surfel_rays", "Rays per Surfel", "Rays each surfel traces per frame",
             (("surfel_prepare", "rays"),), ("SURFEL",), max=64, soft_max=16),
+    Setting("surfel_glossy_rays", "Glossy Rays", "Rays each glossy pixel traces through its reflection lobe per "
+            "frame, for the light other surfaces reflect in it",
+            (("surfel_glossy", "glossy_rays"),), ("SURFEL",), max=16, soft_max=4),
     Setting("cache_rays", "Cache Rays", "Rays each cell of the world light cache traces per frame",
             (("radiance_cache", "rays"),), ("GI10", "SCREEN_PROBES"), max=64, soft_max=16),
     Setting("voxel_resolution", "Voxel Resolution", "Voxels along each side of a cascade (more: sharper light, "

@@ -10,8 +10,11 @@ elevation ``asin(d.z) = pi (v - 0.5)`` (+X at the map's centre, +Y a quarter to 
 What the world provides, each computed once per map:
 
 * ``mean``: the solid-angle mean radiance (what passes that treat the world as uniform use);
-* ``sh``: nine spherical-harmonic coefficients of the irradiance ``E(n)`` (the radiance's
-  order-2 projection convolved with the clamped cosine, Ramamoorthi & Hanrahan 2001);
+* ``irradiance_map``: the irradiance ``E(n)`` on a small equirectangular grid
+  (``IRRADIANCE_SIZE``), the map's radiance integrated against the clamped cosine around each
+  texel's direction (exact up to the source's binning, ``IRRADIANCE_SOURCE`` blocks of the map;
+  order-2 spherical harmonics ring: on Blender's studio HDRI they read 1.24x the irradiance of
+  an upward floor and 2.1x that of a downward face);
 * a piecewise-constant sampling density over a grid of at most ``SAMPLE_GRID`` cells,
   proportional to luminance x cos(elevation) (the solid angle of a cell), stored as a
   marginal CDF over rows and one conditional CDF per row: ``sample`` / ``pdf`` below and
@@ -31,6 +34,12 @@ MAX_MAP_WIDTH = 4096
 # reach half a texel into dark cells, which must then still be sampled.
 DENSITY_FLOOR = 1e-3
 WORLD_TEXTURE_UNIT = 31  # fixed texture unit of u_world_map (scene buffers use unit 0, passes 1..)
+WORLD_IRRADIANCE_UNIT = 29  # fixed texture unit of u_world_irr
+# W x H texels of the irradiance map (bilinear: E is smooth). Its rows run from pole to pole
+# (row i at elevation pi (i / (H - 1) - 0.5)), so that a floor's or a ceiling's irradiance is
+# a texel, not an extrapolation.
+IRRADIANCE_SIZE = (64, 33)
+IRRADIANCE_SOURCE = (128, 64)  # blocks of the map the irradiance integrates over
 
 
 def directions(width: int, height: int) -> np.ndarray:
@@ -87,17 +96,61 @@ def _block_mean(a: np.ndarray, h: int, w: int) -> np.ndarray:
     return a.reshape(h, H // h, w, W // w).mean(axis=(1, 3))
 
 
-def sh_basis(d: np.ndarray) -> np.ndarray:
-    """Real SH basis up to order 2 at unit directions (..., 3) -> (..., 9)."""
-    x, y, z = d[..., 0], d[..., 1], d[..., 2]
-    return np.stack([
-        0.282095 * np.ones_like(x),
-        0.488603 * y, 0.488603 * z, 0.488603 * x,
-        1.092548 * x * y, 1.092548 * y * z, 0.315392 * (3.0 * z * z - 1.0),
-        1.092548 * x * z, 0.546274 * (x * x - y * y)], axis=-1)
+def _edges(n: int, blocks: int) -> np.ndarray:
+    """Start indices of ``blocks`` near-equal runs of ``n`` items (at most n runs)."""
+    return np.unique(np.linspace(0, n, min(blocks, n) + 1).astype(np.int64)[:-1])
 
 
-_SH_COSINE = np.array([np.pi] + [2.0 * np.pi / 3.0] * 3 + [np.pi / 4.0] * 5)
+def irradiance_map(px: np.ndarray) -> np.ndarray:
+    """E(n) (IRRADIANCE_SIZE[1], IRRADIANCE_SIZE[0], 3) at the texels' directions (columns as
+    the map's, rows from pole to pole: ``irradiance_uv``) of a radiance map (H, W, 3): the map binned into IRRADIANCE_SOURCE blocks (radiance x solid angle
+    summed, so a small bright light keeps its power whatever the map's size), each block a point
+    source at its luminous centroid, against max(cos, 0)."""
+    H, W = px.shape[:2]
+    w = px.astype(np.float64) * pixel_solid_angles(W, H)[..., None]
+    rb, cb = _edges(H, IRRADIANCE_SOURCE[1]), _edges(W, IRRADIANCE_SOURCE[0])
+    def blocks(a):
+        return np.add.reduceat(np.add.reduceat(a, rb, axis=0), cb, axis=1)
+
+    power = blocks(w)  # (gh, gw, 3)
+    # each block's direction: its luminous centroid (a small bright light inside it stays where
+    # it is), the block's centre where it is black
+    v = (rb + np.append(rb[1:], H)) * 0.5 / H
+    u = (cb + np.append(cb[1:], W)) * 0.5 / W
+    centre = uv_to_direction(np.stack(np.broadcast_arrays(u[None, :], v[:, None]), axis=-1))
+    lum = _luminance(w)[..., None]
+    pull = blocks(directions(W, H) * lum)
+    norm = np.linalg.norm(pull, axis=-1, keepdims=True)
+    src = np.where(norm > 1e-30, pull / np.maximum(norm, 1e-30), centre)
+    iw, ih = IRRADIANCE_SIZE
+    el = np.pi * (np.arange(ih) / (ih - 1) - 0.5)
+    az = np.pi * (1.0 - 2.0 * (np.arange(iw) + 0.5) / iw)
+    dst = np.stack([np.cos(el)[:, None] * np.cos(az)[None, :], np.cos(el)[:, None] * np.sin(az)[None, :],
+                    np.repeat(np.sin(el)[:, None], iw, axis=1)], axis=-1)
+    cos = np.maximum(dst.reshape(-1, 3).astype(np.float32) @ src.reshape(-1, 3).T.astype(np.float32), 0.0)
+    return (cos @ power.reshape(-1, 3).astype(np.float32)).reshape(ih, iw, 3)
+
+
+def irradiance_uv(uv: np.ndarray) -> np.ndarray:
+    """The irradiance map's texture coordinates of map coordinates uv (..., 2): rows from pole
+    to pole (as ``world_irradiance`` in lib/world.glsl)."""
+    h = IRRADIANCE_SIZE[1]
+    return np.stack([uv[..., 0], (uv[..., 1] * (h - 1) + 0.5) / h], axis=-1)
+
+
+def bilinear_equirect(table: np.ndarray, uv: np.ndarray) -> np.ndarray:
+    """A (h, w, C) equirectangular table at uv (..., 2) as the GPU filters it (texel centres at
+    (i + 0.5) / size, u wraps, v clamps to the edge rows)."""
+    h, w = table.shape[:2]
+    x = uv[..., 0] * w - 0.5
+    y = np.clip(uv[..., 1] * h - 0.5, 0.0, h - 1)
+    x0, y0 = np.floor(x).astype(np.int64), np.floor(y).astype(np.int64)
+    fx, fy = (x - x0)[..., None], (y - y0)[..., None]
+    y1 = np.minimum(y0 + 1, h - 1)
+    c0, c1 = x0 % w, (x0 + 1) % w
+    top = table[y0, c0] * (1 - fx) + table[y0, c1] * fx
+    bot = table[y1, c0] * (1 - fx) + table[y1, c1] * fx
+    return top * (1 - fy) + bot * fy
 
 
 class WorldMap:
@@ -111,10 +164,7 @@ class WorldMap:
         self.width, self.height = W, H
         sa = pixel_solid_angles(W, H)
         self.mean = (px * sa[..., None]).sum(axis=(0, 1)) / (4.0 * np.pi)
-        dirs = directions(W, H)
-        basis = sh_basis(dirs)  # (H, W, 9)
-        coeff = np.einsum("hwk,hwc,h->kc", basis, px.astype(np.float64), sa[:, 0])
-        self.sh = (coeff * _SH_COSINE[:, None]).astype(np.float32)  # irradiance E(n) = sum sh_k Y_k(n)
+        self.irradiance_map = irradiance_map(px)
         # sampling grid: a divisor grid of the map no larger than SAMPLE_GRID
         gw = W
         while gw > SAMPLE_GRID[0] and gw % 2 == 0:
@@ -189,8 +239,9 @@ class WorldMap:
         return self.pixels[r, c]
 
     def irradiance(self, n: np.ndarray) -> np.ndarray:
-        """Irradiance E(n) (N, 3) from the SH coefficients (as world_irradiance in GLSL)."""
-        return sh_basis(np.asarray(n, np.float64)) @ self.sh
+        """Irradiance E(n) (N, 3) from the irradiance map, filtered as world_irradiance in GLSL."""
+        uv = irradiance_uv(direction_to_uv(np.asarray(n, np.float64)))
+        return bilinear_equirect(self.irradiance_map.astype(np.float64), uv)
 
 
 # A compact, bright region carrying at least this share of the map's light is a sun.
@@ -310,6 +361,7 @@ class WorldGPU:
     def __init__(self, ctx):
         self.ctx = ctx
         self.texture = None
+        self.irr_texture = None
         self._key = None
         self.map: WorldMap | None = None
 
@@ -321,19 +373,21 @@ class WorldGPU:
             return False
         import moderngl
 
-        if self.texture is not None:
-            self.texture.release()
-        if wm is None:
-            data = np.zeros((1, 1, 4), np.float32)
-        else:
-            data = np.concatenate([wm.pixels, np.ones(wm.pixels.shape[:2] + (1,), np.float32)], axis=-1)
-        h, w = data.shape[:2]
-        tex = self.ctx.texture((w, h), 4, np.ascontiguousarray(data).tobytes(), dtype="f4")
-        tex.build_mipmaps()
-        tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR, moderngl.LINEAR)
-        tex.repeat_x = True
-        tex.repeat_y = False
-        self.texture = tex
+        self._release_textures()
+
+        def upload(rgb, mipmaps):
+            data = np.concatenate([rgb, np.ones(rgb.shape[:2] + (1,), np.float32)], axis=-1)
+            h, w = data.shape[:2]
+            tex = self.ctx.texture((w, h), 4, np.ascontiguousarray(data, np.float32).tobytes(), dtype="f4")
+            if mipmaps:
+                tex.build_mipmaps()
+            tex.filter = (moderngl.LINEAR_MIPMAP_LINEAR if mipmaps else moderngl.LINEAR, moderngl.LINEAR)
+            tex.repeat_x = True
+            tex.repeat_y = False
+            return tex
+
+        self.texture = upload(np.zeros((1, 1, 3), np.float32) if wm is None else wm.pixels, True)
+        self.irr_texture = upload(np.zeros((1, 1, 3), np.float32) if wm is None else wm.irradiance_map, False)
         self._key = key
         self.map = wm
         return True
@@ -351,16 +405,16 @@ class WorldGPU:
         if wm is not None:
             set_uniform(prog, "u_world_lods", float(math.floor(math.log2(max(wm.width, wm.height)))))
             set_uniform(prog, "u_world_grid", tuple(int(x) for x in wm.grid))
-            try:
-                u = prog["u_world_sh"]
-            except KeyError:
-                u = None
-            if u is not None:
-                u.write(np.ascontiguousarray(wm.sh, np.float32).tobytes())
+        self.irr_texture.use(WORLD_IRRADIANCE_UNIT)
+        set_uniform(prog, "u_world_irr", WORLD_IRRADIANCE_UNIT)
+
+    def _release_textures(self) -> None:
+        for t in (self.texture, self.irr_texture):
+            if t is not None:
+                t.release()
+        self.texture = self.irr_texture = None
 
     def release(self) -> None:
-        if self.texture is not None:
-            self.texture.release()
-            self.texture = None
+        self._release_textures()
         self._key = None
         self.map = None

@@ -242,11 +242,8 @@ void main() {
 #endif
     vec3 world_spec = vec3(0.0);
     if (u_world_count > 0) {
-        // the glossy lobe's dominant direction (Lagarde & de Rousiers 2014): R for smooth
-        // surfaces, bending towards N as the roughness grows
-        vec3 R = reflect(-V, N);
         float a = s.alpha;
-        vec3 D = normalize(mix(N, R, (1.0 - a) * (sqrt(1.0 - a) + a)));
+        vec3 D = specular_dominant_dir(N, V, a);
         float vis_d, vis_g;
         world_visibility(u_world_first, u_world_count, P, N, Ng, D, vis_d, vis_g);
         float NoV = max(dot(N, V), 1e-4);

@@ -23,4 +23,11 @@ vec3 specular_albedo(Surface s, float NoV) {
     return clamp(mix(diel, metal, s.metallic), 0.0, 1.0);
 }
 
+// The glossy lobe's dominant direction (Lagarde & de Rousiers 2014), where a prefiltered
+// radiance lookup stands for the whole lobe: R for smooth surfaces, bending towards N as
+// the roughness grows.
+vec3 specular_dominant_dir(vec3 N, vec3 V, float alpha) {
+    return normalize(mix(N, reflect(-V, N), (1.0 - alpha) * (sqrt(1.0 - alpha) + alpha)));
+}
+
 #endif

@@ -3,7 +3,7 @@
 // map (u_world_mode 1) is an equirectangular radiance texture in Blender's Environment
 // Texture convention (+X at the centre, row 0 at the bottom), with:
 //   world_radiance(d)        radiance arriving from direction d (background, BSDF-ray misses)
-//   world_irradiance(n)      irradiance E(n) on a surface facing n (order-2 SH, cosine-convolved)
+//   world_irradiance(n)      irradiance E(n) on a surface facing n (a small cosine-convolved map)
 //   world_glossy(r, alpha)   radiance prefiltered over a GGX lobe of roughness alpha around r
 //                            (a mip level of the map: the split-sum approximation's first half)
 // Importance sampling of the map (world_sample / world_pdf) needs the ray tracer's light
@@ -14,7 +14,7 @@
 uniform sampler2D u_world_map;
 uniform int u_world_mode;       // 0 = uniform colour, 1 = map
 uniform vec3 u_world_color;     // uniform radiance, or the map's solid-angle mean
-uniform vec3 u_world_sh[9];     // irradiance SH coefficients (map only)
+uniform sampler2D u_world_irr;  // irradiance E(n) over directions, equirectangular (map only)
 uniform float u_world_lods;     // highest mip level of the map
 uniform int u_film_transparent; // 1: the camera sees no world (Render > Film > Transparent)
 
@@ -50,13 +50,10 @@ vec3 world_radiance(vec3 d) {
 
 vec3 world_irradiance(vec3 n) {
     if (u_world_mode == 0) return PI * u_world_color;
-    float x = n.x, y = n.y, z = n.z;
-    vec3 e = u_world_sh[0] * 0.282095
-           + u_world_sh[1] * (0.488603 * y) + u_world_sh[2] * (0.488603 * z) + u_world_sh[3] * (0.488603 * x)
-           + u_world_sh[4] * (1.092548 * x * y) + u_world_sh[5] * (1.092548 * y * z)
-           + u_world_sh[6] * (0.315392 * (3.0 * z * z - 1.0))
-           + u_world_sh[7] * (1.092548 * x * z) + u_world_sh[8] * (0.546274 * (x * x - y * y));
-    return max(e, vec3(0.0));
+    // rows from pole to pole (world_map.irradiance_uv): texel centre i at v = i / (h - 1)
+    vec2 uv = world_uv(n);
+    float h = float(textureSize(u_world_irr, 0).y);
+    return textureLod(u_world_irr, vec2(uv.x, (uv.y * (h - 1.0) + 0.5) / h), 0.0).rgb;
 }
 
 // The lobe's angular radius is about alpha radians; one texel of level 0 spans 2 pi / W.

@@ -45,7 +45,7 @@ import numpy as np
 from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION
-from .screen_space import GBUFFER_BOUND, Units, bind_frame, bind_gbuffer
+from .screen_space import GBUFFER_BOUND, Units, bind_frame, bind_gbuffer, bind_world_light
 
 COLOR = "color"
 IRR, DIST, STATE = "probes.irradiance", "probes.distance", "probes.state"
@@ -357,8 +357,7 @@ class ProbeTracePass(ProbePass):
         set_uniform(prog, "u_view_bias", upd.view_bias())
         set_uniform(prog, "u_seed", int(frame.sample) & 0xFFFFFFFF)
         set_uniform(prog, "u_bounce", 0 if vol.reset or not int(self["infinite_bounces"]) else 1)
-        world = scene.world
-        set_uniform(prog, "u_world_light", 1 if world is not None and max(world.color) > 0 else 0)
+        bind_world_light(scene, prog)
         rc.resources[RAYS].bind_to_image(0, read=False, write=True)
         rays = int(self["rays"])
         rc.dispatch(prog, (rays + 31) // 32, vol.probe_count, 1)

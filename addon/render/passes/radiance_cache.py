@@ -22,7 +22,7 @@ import numpy as np
 
 from ..framegraph import BUFFER, CAMERA_CUT, PARAM_CHANGE, Param, Pass, Res
 from ..gpu_scene import set_uniform
-from .screen_space import camera_vectors
+from .screen_space import bind_world_light, camera_vectors
 
 ENTRIES, IRR = "radiance_cache.entries", "radiance_cache.irradiance"
 BUCKET = 16                 # entries per bucket (radiance_cache/common.glsl RC_BUCKET)
@@ -157,8 +157,7 @@ class RadianceCacheUpdatePass(Pass):
         blend = max(float(self["min_blend"]), float(self["warmup_blend"]) if settling(self, frame) else 0.0)
         set_uniform(prog, "u_rc_min_blend", blend)
         set_uniform(prog, "u_seed", int(frame.sample) & 0xFFFFFFFF)
-        world = rc.scene.scene.world
-        set_uniform(prog, "u_world_light", 1 if world is not None and max(world.color) > 0 else 0)
+        bind_world_light(rc.scene.scene, prog)
         rc.dispatch(prog, (cache.capacity + 63) // 64)
 
 

@@ -36,7 +36,7 @@ from ..framegraph import CAMERA_CUT, PARAM_CHANGE, Effect, Param, Pass, Res
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION
 from .radiance_cache import ENTRIES, IRR as CACHE_IRR, RadianceCache, reset_settling, settling
-from .screen_space import GBUFFER_BOUND, Units, bind_frame, bind_gbuffer
+from .screen_space import GBUFFER_BOUND, Units, bind_frame, bind_gbuffer, bind_world_light
 
 COLOR = "color"
 EFFECT, DIFFUSE, GLOSSY = "sp_gather.effect", "sp.diffuse", "sp.glossy"
@@ -228,8 +228,7 @@ class ScreenProbeTracePass(_SPPass):
         set_uniform(prog, "u_cache", 1 if cache is not None else 0)
         if cache is not None:
             cache.bind(rc, prog)
-        world = rc.scene.scene.world
-        set_uniform(prog, "u_world_light", 1 if world is not None and max(world.color) > 0 else 0)
+        bind_world_light(rc.scene.scene, prog)
         rc.resources[sp.atlas].bind_to_image(0, read=False, write=True)
         rc.dispatch(prog, *self.groups(rc, sp.res))
 

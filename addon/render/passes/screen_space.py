@@ -60,6 +60,12 @@ def bind_frame(rc, prog, frame, size=None):
     set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
 
 
+def bind_world_light(scene, prog) -> None:
+    """lib/bounce.glsl's u_world_light: 1 when the scene's world is not black."""
+    world = scene.world
+    set_uniform(prog, "u_world_light", 1 if world is not None and max(world.color) > 0 else 0)
+
+
 class Units:
     """Hands out texture units (0 is the scene's texture array)."""
 

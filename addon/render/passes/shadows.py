@@ -53,6 +53,15 @@ class WorldRange:
     def __init__(self, first: int = 0, count: int = 0):
         self.first, self.count = first, count
 
+
+def world_light_range(rc) -> tuple[int, int]:
+    """(first, count) of the world views DIRECT lights the world through this frame; (0, 0)
+    when it does not (no world views, or a black world): then its aov.world_spec is 0."""
+    wr = rc.resources.get(WORLD_RANGE)
+    if wr is None or wr.count <= 0 or float(max(rc.scene.scene.world.color)) <= 0:
+        return 0, 0
+    return int(wr.first), int(wr.count)
+
     def release(self):
         pass
 VIEW_FLOATS = 32

@@ -7,7 +7,9 @@ surfel's world position from its instance's transform, the grid's counts cleared
 ``surfel_grid`` (each surfel listed in the cells its sphere overlaps), ``surfel_spawn`` (one
 candidate per screen tile: a surfel where coverage is low), ``surfel_update`` (rays from every
 live surfel, the estimator, the depth moments; unseen surfels recycled), ``surfel_gather``
-(per pixel: ``color += kd E / π``, the debug views).
+(per pixel: ``color += kd E / π``, the debug views), ``surfel_glossy`` (per glossy pixel: rays
+from its GGX lobe, each hit shaded by its direct light and the surfels there; skipped by the
+planner when no glossy surface is in view).
 
 Buffers: ``surfels.pool`` (free stack + surfels, state across frames, emptied on a reset),
 ``surfels.cells`` (the grid, rebuilt every frame), ``surfels.state`` (irradiance estimator and
@@ -22,11 +24,14 @@ from ..framegraph import BUFFER, CAMERA_CUT, PARAM_CHANGE, SHADER_STORAGE_BARRIE
 from ..gpu_scene import set_uniform
 from .gbuffer import ALBEDO, GEONORMAL, NORMAL, POSITION
 from .radiance_cache import reset_settling, settling
-from .screen_space import GBUFFER_BOUND, Units, bind_frame, bind_gbuffer, camera_vectors
+from .screen_space import (GBUFFER_BOUND, WORLD_SPEC, Units, bind_frame, bind_gbuffer, bind_world_light,
+                           camera_vectors)
+from .shadows import WORLD_RANGE, world_light_range
 
 COLOR = "color"
 POOL, CELLS, STATE = "surfels.pool", "surfels.cells", "surfels.state"
 EFFECT, VIEW_SURFELS, VIEW_COVERAGE = "surfel_gather.effect", "surfels.view", "surfels.view_coverage"
+GLOSSY = "surfel_glossy.effect"
 PREV = "@prev"
 GRID, CASCADES, CELL_CAP, STATE_VEC4 = 16, 4, 32, 11   # surfels/common.glsl
 SURFEL_BYTES = 80
@@ -34,7 +39,8 @@ BINDING_POOL, BINDING_CELLS, BINDING_STATE, BINDING_STATE_OUT = 18, 19, 20, 21
 # a geometry or light-set edit changes which instances there are (surfels hold instance ids)
 SURFEL_RESETS = frozenset({CAMERA_CUT, PARAM_CHANGE, "geometry", "light_set"})
 SURFEL_PROVIDES = frozenset({Effect.INDIRECT_DIFFUSE})
-SURFEL_OUTPUTS = {"GI_IndirectDiffuse": EFFECT, "GI_Surfels": VIEW_SURFELS, "GI_SurfelCoverage": VIEW_COVERAGE}
+SURFEL_OUTPUTS = {"GI_IndirectDiffuse": EFFECT, "GI_IndirectGlossy": GLOSSY, "GI_Surfels": VIEW_SURFELS,
+                  "GI_SurfelCoverage": VIEW_COVERAGE}
 
 SURFEL_PARAMS = (
     Param("capacity", 16384, 256, 262144, "surfels in the pool (fixed: counts cannot grow past it)"),
@@ -240,8 +246,7 @@ class SurfelUpdatePass(_SurfelPass):
         set_uniform(prog, "u_sf_radius_px", float(p["radius_px"]))
         bind_frame(rc, prog, frame)
         set_uniform(prog, "u_seed", int(frame.sample) & 0xFFFFFFFF)
-        world = rc.scene.scene.world
-        set_uniform(prog, "u_world_light", 1 if world is not None and max(world.color) > 0 else 0)
+        bind_world_light(rc.scene.scene, prog)
         rc.dispatch(prog, (sf.capacity + 63) // 64)
 
 
@@ -277,9 +282,49 @@ class SurfelGatherPass(_SurfelPass):
                 rc.clear_resource(n)
 
 
+class SurfelGlossyPass(_SurfelPass):
+    """Glossy indirect light: a surfel holds irradiance only, so each glossy pixel traces its
+    lobe (surfels/glossy.comp); a hit is lit by its direct light and the surfels there."""
+    name = "surfel_glossy"
+    params = (Param("glossy_rays", 1, 0, 16, "rays from each glossy pixel's lobe per frame (0: no glossy "
+                                                  "indirect light)"),)
+    quality_ladder = ({"glossy_rays": 1}, {"glossy_rays": 1}, {"glossy_rays": 2}, {"glossy_rays": 4})
+
+    def __init__(self, surfels, quality=None, **kw):
+        super().__init__(surfels, quality, **kw)
+        self.provides = frozenset({Effect.INDIRECT_SPECULAR})
+        self.reads = (COLOR, ALBEDO, NORMAL, POSITION, GEONORMAL, CELLS, STATE, WORLD_SPEC)
+        self.optional_reads = GBUFFER_BOUND + (WORLD_RANGE,)
+        self.writes = (COLOR, POOL, GLOSSY)
+        self.history_resets = frozenset()
+
+    def resources(self):
+        return (Res(GLOSSY, check="radiance"),)
+
+    def execute(self, rc, frame):
+        rays = int(self["glossy_rays"])
+        if rays <= 0:
+            rc.clear_resource(GLOSSY)
+            return
+        sf = self.surfels
+        prog = self.program(rc, "surfels/glossy.comp", rt=True)
+        bind_frame(rc, prog, frame)
+        sf.bind(rc, prog)
+        units = Units(1)
+        bind_gbuffer(rc, prog, units)
+        units.tex(prog, "u_world_spec", rc.resources[WORLD_SPEC])
+        set_uniform(prog, "u_world_refl", 1 if world_light_range(rc)[1] > 0 else 0)
+        set_uniform(prog, "u_sf_glossy_rays", rays)
+        bind_world_light(rc.scene.scene, prog)
+        rc.resources[COLOR].bind_to_image(0, read=True, write=True)
+        rc.resources[GLOSSY].bind_to_image(1, read=False, write=True)
+        rc.dispatch(prog, *rc.groups(8))
+
+
 def surfel_chain(quality, **params) -> list:
     sf = SurfelSet()
-    kinds = (SurfelPreparePass, SurfelGridPass, SurfelSpawnPass, SurfelUpdatePass, SurfelGatherPass)
+    kinds = (SurfelPreparePass, SurfelGridPass, SurfelSpawnPass, SurfelUpdatePass, SurfelGatherPass,
+             SurfelGlossyPass)
     return [k(sf, quality, **params.get(k.name, {})) for k in kinds]
 
 

@@ -32,7 +32,7 @@ from ..gpu_scene import set_uniform
 from ..passes.gbuffer import ALBEDO, EMISSION, GEONORMAL, NORMAL, POSITION, GBufferPass
 from ..passes.light_cull import (BIND_TILE_LIGHTS, LIGHT_CULL, TILE, TILE_LIGHTS, LightCuller,
                                   LightCullPass)
-from ..passes.shadows import ATLAS, SHADOW_SELECTION, VIEWS, WORLD_RANGE, ShadowPass
+from ..passes.shadows import ATLAS, SHADOW_SELECTION, VIEWS, WORLD_RANGE, ShadowPass, world_light_range
 from ..scene_data import SceneError
 from . import Technique, register
 
@@ -135,10 +135,9 @@ class DirectLightPass(Pass):
         set_uniform(prog, "u_sample", int(frame.sample) & 0xFFFFFFFF)
         set_uniform(prog, "u_glossy_samples", int(self["glossy_samples"]))
         set_uniform(prog, "u_mesh_exact_max", int(self["mesh_exact_max"]))
-        wr = res.get(WORLD_RANGE)
-        world_on = wr is not None and wr.count > 0 and float(max(rc.scene.scene.world.color)) > 0
-        set_uniform(prog, "u_world_first", int(wr.first) if world_on else 0)
-        set_uniform(prog, "u_world_count", int(wr.count) if world_on else 0)
+        first, count = world_light_range(rc)
+        set_uniform(prog, "u_world_first", first)
+        set_uniform(prog, "u_world_count", count)
         res[COLOR].bind_to_image(0, read=False, write=True)
         res[AOV_DIRECT].bind_to_image(1, read=False, write=True)
         res[AOV_EMIT].bind_to_image(2, read=False, write=True)

@@ -4,9 +4,12 @@ covered, kept in object space (they move with their objects), traced a few rays 
 integrated by a multiscale mean estimator, with depth-moment visibility, recycled when unseen.
 
 Passes: ``gbuffer`` → ``shadows`` → ``direct_light`` (DIRECT) → ``surfel_prepare`` →
-``surfel_grid`` → ``surfel_spawn`` → ``surfel_update`` → ``surfel_gather``
-(passes/surfels.py). Compared with Cycles "full". Diffuse only: a surfel holds irradiance,
-not directional light. Docs: docs/techniques/SURFEL.md.
+``surfel_grid`` → ``surfel_spawn`` → ``surfel_update`` → ``surfel_gather`` → ``surfel_glossy``
+(passes/surfels.py). Compared with Cycles "full". A surfel holds irradiance, not directional
+light, so glossy indirect light is traced: each glossy pixel sends ``glossy_rays`` rays
+through its GGX lobe, lit at the hit by its direct light and the surfels there; the share of
+those rays that escape also replaces DIRECT's shadow-map estimate of the world reflection's
+visibility. Docs: docs/techniques/SURFEL.md.
 """
 from __future__ import annotations
 
