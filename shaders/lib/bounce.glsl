@@ -15,21 +15,45 @@ uniform int u_world_light;   // 1: the world is not black
 
 // Returns the radiance leaving the front-face hit `sh` of direction `d` back towards the ray's
 // origin (direct light and uniform sky at the hit); `kd` its diffuse albedo, `N` the shading
-// normal facing the ray, `p` the hit point.
-vec3 bounce_direct(SurfaceHit sh, vec3 d, inout Rng rng, out vec3 kd, out vec3 N, out vec3 p) {
+// normal facing the ray, `p` the hit point. mis: the hit's light sample is MIS-weighted
+// against one BSDF sample that collects the lights, emitters and world map it meets (power
+// heuristic, as PT at every bounce) — for a pixel's own reflection ray, where one light
+// sample of a sharp lobe seen at a grazing angle is a firefly; a cache averaging many rays
+// per entry takes the light sample alone.
+vec3 bounce_direct_ex(SurfaceHit sh, vec3 d, inout Rng rng, bool mis, out vec3 kd, out vec3 N, out vec3 p) {
     vec3 V = -d;
     vec3 Ng;
     surface_frame(sh, V, N, Ng, p);
     Surface bs = sh.bsdf;
     float NoV = max(dot(N, V), 1e-4);
     kd = diffuse_albedo(bs, NoV);
-    vec3 L = shade_direct_at(bs, p, N, Ng, V, rng, false);
+    vec3 L = shade_direct_at(bs, p, N, Ng, V, rng, mis);
+    if (mis && (u_light_count > 0 || u_world_select > 0.0)) {
+        float bpdf;
+        vec3 Lb = sample_principled(bs, N, V, rng_next4(rng).xyz, bpdf);
+        if (bpdf > 0.0 && dot(Lb, Ng) > 0.0) {
+            BsdfEval fe = eval_principled(bs, N, V, Lb);
+            vec3 f = fe.diffuse + fe.glossy;
+            if (max3(f) > 0.0) {
+                SurfaceHit sb;
+                bool hb = scene_trace(p, Lb, 0.0, T_INF, sb);
+                // a uniform world is the cosine ray's below, not a light of this estimator
+                vec3 Le = bsdf_hit_light_mis(p, Lb, 0.0, hb, sb, bpdf, true)
+                        - ((hb || u_world_select > 0.0) ? vec3(0.0) : u_world_color);
+                L += f * max(Le, vec3(0.0)) / bpdf;
+            }
+        }
+    }
     if (u_world_light != 0 && u_world_select <= 0.0 && max3(kd) > 0.0) {  // a uniform world
                                                                           // (a map is in shade_direct)
         vec3 wd = to_world(sample_cosine_hemisphere(rng_next2(rng)), N);
         if (dot(wd, Ng) > 0.0 && !scene_occluded(p, wd, 0.0, T_INF)) L += kd * u_world_color;
     }
     return L;
+}
+
+vec3 bounce_direct(SurfaceHit sh, vec3 d, inout Rng rng, out vec3 kd, out vec3 N, out vec3 p) {
+    return bounce_direct_ex(sh, d, rng, false, kd, N, p);
 }
 
 #endif

@@ -2,15 +2,18 @@
 // light, so the glossy lobe is traced: per pixel with a glossy lobe, u_sf_glossy_rays rays drawn
 // from its GGX lobe (visible normals) through the scene's BVH.
 //   hit: the light the hit sends back along the ray other than what DIRECT already gives the
-//        pixel: its direct light (lib/bounce.glsl) plus its diffuse albedo × the surfels'
+//        pixel: its direct light (lib/bounce.glsl, MIS'd with a BSDF sample: a glossy hit seen at
+//        a grazing angle glints) plus its diffuse albedo × the surfels'
 //        irradiance there / π (the surfels it uses are marked used, so a surface seen only in a
 //        reflection keeps its surfels). A hit emitter's emission is not added: DIRECT's MIS
 //        glossy term holds the glossy reflection of the lights and emitters.
 //   the world: DIRECT reflects it prefiltered (world_glossy along the lobe's dominant
 //        direction × the specular albedo), shadowed by a visibility its world shadow maps
-//        estimate along a few directions (aov.world_spec). Here that visibility is the share
-//        of the rays (weighted by f / pdf) that escape: color += the unshadowed reflection ×
-//        that share − aov.world_spec. Noise-free where nothing blocks the lobe.
+//        estimate along a few directions (aov.world_spec). The share of the rays (weighted by
+//        f / pdf) that escape is the traced visibility; where it is lower, color loses the
+//        difference (the unshadowed reflection × that share − aov.world_spec): a glossy
+//        floor under a roof stops reflecting the sky through it. Noise-free where nothing
+//        blocks the lobe.
 // color += f_glossy · L_hit / pdf averaged over the rays, plus that world correction. Render
 // pass: o_glossy, the first part (the glossy light from other surfaces).
 #define USE_SCENE_BUFFERS
@@ -68,15 +71,19 @@ void main() {
                     continue;
                 }
                 vec3 kd, N, p;
-                vec3 L = bounce_direct(sh, d, rng, kd, N, p);
+                vec3 L = bounce_direct_ex(sh, d, rng, true, kd, N, p);
                 float cov;
                 if (max3(kd) > 0.0) L += kd * sf_irradiance(p, N, cov, u_sf_frame) * INV_PI;
                 hits += sanitize(fw * L);
             }
             add = hits / float(max(u_sf_glossy_rays, 1));
+            // the rays take away the world reflection they find blocked, never add to it: where
+            // they escape but DIRECT's shadow maps saw less, the prefiltered lookup along the
+            // dominant direction is what overshoots (a glossy ball's rim at grazing view under
+            // the night HDRI's city lights: 10x Cycles' pixel)
             if (u_world_refl != 0 && wsum > 0.0)
-                world = world_glossy(specular_dominant_dir(g.N, V, s.alpha), s.alpha) * ks * (wesc / wsum)
-                       - texelFetch(u_world_spec, px, 0).rgb;
+                world = min(world_glossy(specular_dominant_dir(g.N, V, s.alpha), s.alpha) * ks * (wesc / wsum)
+                            - texelFetch(u_world_spec, px, 0).rgb, vec3(0.0));
         }
     }
     vec4 c = imageLoad(io_color, px);
