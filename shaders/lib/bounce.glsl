@@ -29,20 +29,9 @@ vec3 bounce_direct_ex(SurfaceHit sh, vec3 d, inout Rng rng, bool mis, out vec3 k
     kd = diffuse_albedo(bs, NoV);
     vec3 L = shade_direct_at(bs, p, N, Ng, V, rng, mis);
     if (mis && (u_light_count > 0 || u_world_select > 0.0)) {
-        float bpdf;
-        vec3 Lb = sample_principled(bs, N, V, rng_next4(rng).xyz, bpdf);
-        if (bpdf > 0.0 && dot(Lb, Ng) > 0.0) {
-            BsdfEval fe = eval_principled(bs, N, V, Lb);
-            vec3 f = fe.diffuse + fe.glossy;
-            if (max3(f) > 0.0) {
-                SurfaceHit sb;
-                bool hb = scene_trace(p, Lb, 0.0, T_INF, sb);
-                // a uniform world is the cosine ray's below, not a light of this estimator
-                vec3 Le = bsdf_hit_light_mis(p, Lb, 0.0, hb, sb, bpdf, true)
-                        - ((hb || u_world_select > 0.0) ? vec3(0.0) : u_world_color);
-                L += f * max(Le, vec3(0.0)) / bpdf;
-            }
-        }
+        vec3 g, dir;
+        float t;
+        L += bsdf_sample_lights(bs, p, N, Ng, V, rng, g, dir, t);
     }
     if (u_world_light != 0 && u_world_select <= 0.0 && max3(kd) > 0.0) {  // a uniform world
                                                                           // (a map is in shade_direct)

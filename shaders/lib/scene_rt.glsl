@@ -336,4 +336,28 @@ vec3 bsdf_hit_light_mis(vec3 o, vec3 d, float tmin, bool hit, SurfaceHit s, floa
     return sum;
 }
 
+// The BSDF half of MIS at a surface point p (Principled lobes): one direction from the BSDF,
+// the lights, emitters and world map it meets (bsdf_hit_light_mis; a uniform world is left
+// out: callers light by it with a cosine ray of their own). Returns f · Le / pdf; `glossy` the
+// glossy lobe's part of it, `dir` the direction, `t` the distance to what it hit (T_INF:
+// escaped; 0 with no sample). Consumes one rng_next4.
+vec3 bsdf_sample_lights(Surface bs, vec3 p, vec3 N, vec3 Ng, vec3 V, inout Rng rng,
+                        out vec3 glossy, out vec3 dir, out float t) {
+    glossy = vec3(0.0);
+    t = 0.0;
+    float bpdf;
+    dir = sample_principled(bs, N, V, rng_next4(rng).xyz, bpdf);
+    if (!(bpdf > 0.0) || dot(dir, Ng) <= 0.0) return vec3(0.0);
+    BsdfEval fe = eval_principled(bs, N, V, dir);
+    vec3 f = fe.diffuse + fe.glossy;
+    if (max3(f) <= 0.0) return vec3(0.0);
+    SurfaceHit sb;
+    bool hb = scene_trace(p, dir, 0.0, T_INF, sb);
+    t = hb ? sb.t : T_INF;
+    vec3 Le = max(bsdf_hit_light_mis(p, dir, 0.0, hb, sb, bpdf, true)
+                  - ((hb || u_world_select > 0.0) ? vec3(0.0) : u_world_color), vec3(0.0));
+    glossy = fe.glossy * Le / bpdf;
+    return f * Le / bpdf;
+}
+
 #endif

@@ -92,38 +92,25 @@ vec3 miss_radiance(vec3 O, vec3 L, float dcam, inout Rng rng, out float t, out f
             lum_g += lg;
         }
         if (glossy) {
-            vec4 ub = rng_next4(rng);
-            float bpdf;
-            vec3 Lb = sample_principled(bs, Nh, V, ub.xyz, bpdf);
-            if (bpdf > 0.0 && dot(Lb, Ngh) > 0.0) {
-                BsdfEval fe = eval_principled(bs, Nh, V, Lb);
-                vec3 f = fe.diffuse + fe.glossy;
-                if (max3(f) > 0.0) {
-                    SurfaceHit sb;
-                    bool hb = scene_trace(ph, Lb, 0.0, T_INF, sb);
-                    // lights and emitters this ray meets (a uniform world's light is the
-                    // visibility ray's below; a world map is sampled with the lights)
-                    vec3 Le = bsdf_hit_light_mis(ph, Lb, 0.0, hb, sb, bpdf, true)
-                            - ((hb || u_world_select > 0.0) ? vec3(0.0) : u_world_color);
-                    c += f * max(Le, vec3(0.0)) / bpdf;
-                    // the light this ray met: its distance to the light's centre (emitting
-                    // surfaces: the hit)
-                    float lb = luminance(fe.glossy * max(Le, vec3(0.0)) / bpdf);
-                    if (lb > 0.0) {
-                        float tb = hb ? sb.t : 0.0;
-                        for (int i = 0; i < u_light_count; ++i) {
-                            vec3 le;
-                            float lp;
-                            if (light_ray_hit(lights[i], ph, Lb, 0.0, hb ? sb.t : T_INF, le, lp)) {
-                                tb = int(lights[i].pos_type.w + 0.5) == LIGHT_SUN ? SSR_MISS_ESCAPE_DIST
-                                                                                   : length(lights[i].pos_type.xyz - ph);
-                                break;
-                            }
-                        }
-                        tl = (tl * lum_g + tb * lb) / (lum_g + lb);
-                        lum_g += lb;
+            vec3 gb, Lb;
+            float t_b;
+            c += bsdf_sample_lights(bs, ph, Nh, Ngh, V, rng, gb, Lb, t_b);
+            // the light this ray met: its distance to the light's centre (emitting surfaces: the hit)
+            float lb = luminance(gb);
+            if (lb > 0.0) {
+                bool hb = t_b < T_INF;
+                float tb = hb ? t_b : 0.0;
+                for (int i = 0; i < u_light_count; ++i) {
+                    vec3 le;
+                    float lp;
+                    if (light_ray_hit(lights[i], ph, Lb, 0.0, hb ? t_b : T_INF, le, lp)) {
+                        tb = int(lights[i].pos_type.w + 0.5) == LIGHT_SUN ? SSR_MISS_ESCAPE_DIST
+                                                                           : length(lights[i].pos_type.xyz - ph);
+                        break;
                     }
                 }
+                tl = (tl * lum_g + tb * lb) / (lum_g + lb);
+                lum_g += lb;
             }
         }
         if (u_world_select <= 0.0 && max3(u_world_color) > 0.0) {
