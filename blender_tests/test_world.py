@@ -106,8 +106,8 @@ def test_sampling_tables_are_consistent():
 def test_irradiance_map_is_the_cosine_integral_of_the_map(hdri):
     """world_irradiance's table (WorldMap.irradiance_map, filtered as the GPU filters it) against
     the clamped-cosine integral of every texel of a bundled HDRI, for the floor, the ceiling,
-    walls and tilted faces. Order-2 spherical harmonics, which it replaced, read 1.24x (floor)
-    and 2.05x (a downward face) on studio, 2.47x on night's downward face."""
+    walls and tilted faces. Order-2 spherical harmonics fail this: 1.24x (floor) and 2.05x (a
+    downward face) on studio, 2.47x on night's downward face."""
     R.ensure_oiio()
     px = imageio.read_exr(SW.hdri_path(hdri))[..., :3].astype(np.float32)
     wm = WorldMap(px)

@@ -13,8 +13,8 @@ What the world provides, each computed once per map:
 * ``irradiance_map``: the irradiance ``E(n)`` on a small equirectangular grid
   (``IRRADIANCE_SIZE``), the map's radiance integrated against the clamped cosine around each
   texel's direction (exact up to the source's binning, ``IRRADIANCE_SOURCE`` blocks of the map;
-  order-2 spherical harmonics ring: on Blender's studio HDRI they read 1.24x the irradiance of
-  an upward floor and 2.1x that of a downward face);
+  not spherical harmonics, whose order-2 ringing reads 1.24x the irradiance of an upward floor
+  and 2.1x that of a downward face under Blender's studio HDRI);
 * a piecewise-constant sampling density over a grid of at most ``SAMPLE_GRID`` cells,
   proportional to luminance x cos(elevation) (the solid angle of a cell), stored as a
   marginal CDF over rows and one conditional CDF per row: ``sample`` / ``pdf`` below and
@@ -103,12 +103,14 @@ def _edges(n: int, blocks: int) -> np.ndarray:
 
 def irradiance_map(px: np.ndarray) -> np.ndarray:
     """E(n) (IRRADIANCE_SIZE[1], IRRADIANCE_SIZE[0], 3) at the texels' directions (columns as
-    the map's, rows from pole to pole: ``irradiance_uv``) of a radiance map (H, W, 3): the map binned into IRRADIANCE_SOURCE blocks (radiance x solid angle
-    summed, so a small bright light keeps its power whatever the map's size), each block a point
-    source at its luminous centroid, against max(cos, 0)."""
+    the map's, rows from pole to pole: ``irradiance_uv``) of a radiance map (H, W, 3): the map
+    binned into IRRADIANCE_SOURCE blocks (radiance x solid angle summed, so a small bright light
+    keeps its power whatever the map's size), each block a point source at its luminous
+    centroid, against max(cos, 0)."""
     H, W = px.shape[:2]
     w = px.astype(np.float64) * pixel_solid_angles(W, H)[..., None]
     rb, cb = _edges(H, IRRADIANCE_SOURCE[1]), _edges(W, IRRADIANCE_SOURCE[0])
+
     def blocks(a):
         return np.add.reduceat(np.add.reduceat(a, rb, axis=0), cb, axis=1)
 
@@ -123,10 +125,8 @@ def irradiance_map(px: np.ndarray) -> np.ndarray:
     norm = np.linalg.norm(pull, axis=-1, keepdims=True)
     src = np.where(norm > 1e-30, pull / np.maximum(norm, 1e-30), centre)
     iw, ih = IRRADIANCE_SIZE
-    el = np.pi * (np.arange(ih) / (ih - 1) - 0.5)
-    az = np.pi * (1.0 - 2.0 * (np.arange(iw) + 0.5) / iw)
-    dst = np.stack([np.cos(el)[:, None] * np.cos(az)[None, :], np.cos(el)[:, None] * np.sin(az)[None, :],
-                    np.repeat(np.sin(el)[:, None], iw, axis=1)], axis=-1)
+    tu, tv = (np.arange(iw) + 0.5) / iw, np.arange(ih) / (ih - 1)
+    dst = uv_to_direction(np.stack(np.broadcast_arrays(tu[None, :], tv[:, None]), axis=-1))
     cos = np.maximum(dst.reshape(-1, 3).astype(np.float32) @ src.reshape(-1, 3).T.astype(np.float32), 0.0)
     return (cos @ power.reshape(-1, 3).astype(np.float32)).reshape(ih, iw, 3)
 
