@@ -22,7 +22,7 @@ from gi_preview.blender.demo_scenes import make_emission, make_principled, make_
 from gi_preview.blender.export import export_scene
 from gi_preview.render import session, techniques
 
-RES = 40
+RES = 32
 TECHNIQUES = sorted(i.id for i in techniques.available())
 
 

@@ -467,8 +467,13 @@ class GPUScene:
         exceeds MAX_TEXTURE_SIZE."""
         if self.textures is not None:
             self.textures.release()
+        import moderngl
+
         if not scene.textures:
-            self.textures = self.ctx.texture_array((1, 1, 1), 4, np.ones(4, np.float32).tobytes(), dtype="f4")
+            # the same format and filter as a real array: a driver that specialises a program on
+            # the texture formats bound (Mesa's llvmpipe) then compiles it once for both
+            self.textures = self.ctx.texture_array((1, 1, 1), 4, np.ones(4, np.float16).tobytes(), dtype="f2")
+            self.textures.filter = (moderngl.NEAREST, moderngl.NEAREST)
             return
         sizes = [layer_size(t.pixels) for t in scene.textures]
         w = max(s[0] for s in sizes)
@@ -477,8 +482,6 @@ class GPUScene:
         for i, (t, (tw, th)) in enumerate(zip(scene.textures, sizes)):
             data[i, :th, :tw] = _resize(np.asarray(t.pixels, np.float32), tw, th)
         tex = self.ctx.texture_array((w, h, len(sizes)), 4, data.tobytes(), dtype="f2")
-        import moderngl
-
         tex.filter = (moderngl.NEAREST, moderngl.NEAREST)  # sampled with texelFetch only
         self.textures = tex
 

@@ -386,8 +386,12 @@ class WorldGPU:
             tex.repeat_y = False
             return tex
 
-        self.texture = upload(np.zeros((1, 1, 3), np.float32) if wm is None else wm.pixels, True)
-        self.irr_texture = upload(np.zeros((1, 1, 3), np.float32) if wm is None else wm.irradiance_map, False)
+        # without a map, black stand-ins shaped like a map (a mip chain) and like the irradiance
+        # table: a driver that specialises a program on the bound textures' sizes and levels
+        # (Mesa's llvmpipe) then compiles it once for worlds with and without a map
+        self.texture = upload(np.zeros((2, 4, 3), np.float32) if wm is None else wm.pixels, True)
+        no_irr = np.zeros((IRRADIANCE_SIZE[1], IRRADIANCE_SIZE[0], 3), np.float32)
+        self.irr_texture = upload(no_irr if wm is None else wm.irradiance_map, False)
         self._key = key
         self.map = wm
         return True
