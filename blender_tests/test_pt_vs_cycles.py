@@ -59,7 +59,7 @@ from gi_preview.blender.export import export_scene  # noqa: E402
 from gi_preview.blender.reference import evaluated_depsgraph, get_reference  # noqa: E402
 from gi_preview.render.techniques.pt import render_offline  # noqa: E402
 
-RES = int(os.environ.get("GI_PT_TEST_RES", 40))
+RES = int(os.environ.get("GI_PT_TEST_RES", 32))
 BATCHES = int(os.environ.get("GI_PT_TEST_BATCHES", 32))
 SPP_PER_BATCH = int(os.environ.get("GI_PT_TEST_SPP", 32))
 REF_SPP = int(os.environ.get("GI_PT_TEST_REF_SPP", 4096))
