@@ -30,7 +30,7 @@ from gi_preview.render.gl import get_gl
 
 @pytest.fixture(scope="module")
 def cornell():
-    sc = demo_scenes.build_demo("cornell", resolution=32)
+    sc = demo_scenes.build_demo("cornell", resolution=20)
     sd = export_scene(reference.evaluated_depsgraph(sc))
     yield sd
     bpy.data.scenes.remove(sc)
