@@ -137,6 +137,36 @@ def test_cancel_before_render(scene):
     assert _snapshot(scene, _paths(scene, "full")) == before
 
 
+def test_renders_a_scene_that_is_not_the_context_scene_at_its_own_frame(scene):
+    """The reference of a scene other than the window's is rendered at that scene's frame and
+    leaves the frame alone (Blender's operator, given only the scene's name, renders at the
+    context scene's frame and moves the scene there). The sun is keyed off at frame 1 and on
+    from frame 4."""
+    assert bpy.context.scene != scene and bpy.context.scene.frame_current != 4
+    sun = scene.objects["ref_sun"].data
+    sun.energy = 0.0
+    sun.keyframe_insert("energy", frame=1)
+    sun.energy = 3.0
+    sun.keyframe_insert("energy", frame=4)
+    action = sun.animation_data.action
+    try:
+        for fc in getattr(action, "fcurves", None) or [c for lay in action.layers for s in lay.strips
+                                                       for b in s.channelbags for c in b.fcurves]:
+            for k in fc.keyframe_points:
+                k.interpolation = "CONSTANT"
+        scene.frame_set(4)
+        lit, _ = R.render_cycles(scene, 4, "direct")
+        assert scene.frame_current == 4 and scene.objects["ref_sun"].data.energy == 3.0
+        scene.frame_set(1)
+        dark, _ = R.render_cycles(scene, 4, "direct")
+        assert scene.frame_current == 1
+    finally:
+        sun.animation_data_clear()
+        bpy.data.actions.remove(action)
+    assert float(dark[..., :3].max()) == 0.0
+    assert float(lit[..., :3].mean()) > 0.05
+
+
 def test_cache_hit_and_invalidation(scene, tmp_path):
     r1 = R.get_reference(scene, "full", 16, cache_dir=str(tmp_path))
     assert not r1.cached and r1.image.shape == (32, 32, 4)

@@ -42,6 +42,7 @@ import numpy as np
 import bpy
 
 from ..compare import metrics as M
+from . import reference
 
 IMG_RESULT = "GI Preview: result"
 IMG_CYCLES = "GI Preview: Cycles"
@@ -113,7 +114,7 @@ def fill_render_slots(scene, images: list) -> bool:
             if rr is not None and len(rr.render_slots) > i:
                 rr.render_slots.active_index = i
             engine_mod.display_queue[:] = [(label, img)]
-            bpy.ops.render.render(scene=scene.name)
+            reference.render_operator(scene)
             rr = bpy.data.images.get("Render Result")
             if rr is not None and len(rr.render_slots) > i:
                 rr.render_slots[i].name = label

@@ -391,9 +391,23 @@ def _ao_material(distance: float):
     return mat
 
 
+def render_operator(scene, **kwargs):
+    """``bpy.ops.render.render`` of ``scene`` at its own current frame, leaving the frame as
+    it was. Blender's operator given ``scene=`` for a scene that is not the context's renders
+    that scene at the context scene's frame and leaves it there; so the context's scene is
+    overridden for the call instead, and a frame changed anyway is put back."""
+    frame, subframe = scene.frame_current, scene.frame_subframe
+    try:
+        with bpy.context.temp_override(scene=scene):
+            bpy.ops.render.render(**kwargs)
+    finally:
+        if (scene.frame_current, scene.frame_subframe) != (frame, subframe):
+            scene.frame_set(frame, subframe=subframe)
+
+
 # test hook: the one call that renders (monkeypatched in tests to inject failures)
 def _run_render(scene):
-    bpy.ops.render.render(scene=scene.name, use_viewport=False)
+    render_operator(scene, use_viewport=False)
 
 
 def render_cycles(scene, spp: int, kind: str = "full", seed: int = DEFAULT_SEED, *,
