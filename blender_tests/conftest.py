@@ -35,6 +35,12 @@ sys.path.insert(0, str(_PKG_ROOT))
 # ---------------------------------------------------------------- fixtures
 import pytest  # noqa: E402
 
+
+def pytest_configure(config):
+    config.addinivalue_line(
+        "markers", "serial: bounds on wall time, latency or thread races that hold only while no other "
+                   "test process shares the cores (scripts/test.sh runs these after the parallel part)")
+
 _ID_COLLECTIONS = ("scenes", "objects", "meshes", "materials", "lights", "cameras", "worlds", "images",
                    "collections", "node_groups", "textures", "curves", "actions", "metaballs")
 

@@ -12,6 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+# its workers are processes of their own, timed out by heartbeats: not beside another test process
+pytestmark = pytest.mark.serial
+
 REPO = Path(__file__).resolve().parent.parent
 SCRIPT = REPO / "scripts" / "gi_compare.py"
 SCENES = ["cornell", "glossy_spheres", "sunlit_room"]

@@ -253,6 +253,7 @@ def test_opengl_unavailable_clear_error(tmp_path):
     assert "libegl1" in text
 
 
+@pytest.mark.serial  # a wall-time bound: not beside another test process
 def test_cancel_within_a_second():
     """Cancelling stops the accumulation between frames: far fewer frames than asked."""
     sc = build_demo("many_lights", resolution=64)

@@ -241,6 +241,7 @@ def test_two_viewports_converge_independently(monkeypatch):
         bpy.data.scenes.remove(sc)
 
 
+@pytest.mark.serial  # a latency bound: not beside another test process
 def test_viewport_frame_during_f12_render():
     """An F12 render of many samples runs on the GL thread; viewport frames submitted
     meanwhile come back within about one frame of each (they run before the F12 render's

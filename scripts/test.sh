@@ -1,6 +1,13 @@
 #!/usr/bin/env bash
 # Set up (idempotent, fast when done) and run the test suite with the bpy module.
 # Extra arguments go to pytest, e.g.  bash scripts/test.sh -k install -v
+#
+# Two parts: every test not marked `serial` on two worker processes (pytest-xdist, one test
+# file per worker at a time: llvmpipe compiles each shader program on one core, so a second
+# process keeps both cores busy), then the `serial` tests in one process on their own (their
+# bounds on wall time, latency and thread races assume no other test process). Compiled
+# shaders carry over from the first part through Mesa's on-disk shader cache.
+# GI_PREVIEW_TEST_WORKERS sets the number of worker processes (0: one process, no xdist).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
@@ -16,13 +23,31 @@ if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/
         >/dev/null 2>&1 || echo "[test] WARNING: could not install chromium; test_report_browser is skipped" >&2
 fi
 
-set +e
-.venv/bin/python -m pytest blender_tests -q -rs --durations=30 "$@"
-rc=$?
-set -e
-if [[ $rc == 5 ]]; then
+workers="${GI_PREVIEW_TEST_WORKERS:-2}"
+run() {  # run <pytest args...>: the exit code, 5 (nothing collected) kept apart
+    set +e
+    .venv/bin/python -m pytest blender_tests -q -rs --durations=30 "$@"
+    local rc=$?
+    set -e
+    return $rc
+}
+if [[ "$workers" == 0 ]]; then
+    run "$@" && rc=0 || rc=$?
+    rc_serial=5
+else
+    echo "[test] part 1: the tests not marked serial, on $workers worker processes"
+    run -n "$workers" --dist loadfile -m "not serial" "$@" && rc=0 || rc=$?
+    echo "[test] part 2: the serial tests, in one process"
+    run -m serial "$@" && rc_serial=0 || rc_serial=$?
+fi
+if [[ $rc == 5 && $rc_serial == 5 ]]; then
     echo "[test] ERROR: pytest collected no tests (exit code 5): blender_tests/ has no tests," \
          "or the arguments deselected all of them" >&2
     exit 1
 fi
-exit $rc
+for r in "$rc" "$rc_serial"; do
+    if [[ $r != 0 && $r != 5 ]]; then
+        exit "$r"
+    fi
+done
+exit 0
