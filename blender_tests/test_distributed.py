@@ -105,6 +105,15 @@ def test_two_workers_give_the_serial_rows(gc, sweeps):
         assert [c["spp"] for c in d["cycles_curve"]] == [1, 2]
         assert (tmp / "dask" / name / "report.html").exists()
     assert "cornell" in exact  # built first in both processes: the identical scene, the identical reference
+    # one process compiles a technique once: the serial sweep measures its cold setup on the first
+    # scene and later scenes count that compile plus their own export
+    first = _rows(json.loads((tmp / "serial" / SCENES[0] / "results.json").read_text()))
+    for name in SCENES[1:]:
+        for k, e in _rows(json.loads((tmp / "serial" / name / "results.json").read_text())).items():
+            assert e["cost"]["cold_measured_on"] == SCENES[0] != name, (name, k)
+            assert e["setup"]["renderer_ms"] == pytest.approx(first[k]["setup"]["renderer_ms"]), (name, k)
+            assert e["setup_ms"] == pytest.approx(e["setup"]["export_ms"] + first[k]["setup"]["renderer_ms"])
+    assert all(e["cost"]["cold_measured_on"] == SCENES[0] for e in first.values())
     index = (tmp / "dask" / "index.html").read_text()
     for name in SCENES:
         assert f"href='{name}/report.html'" in index
