@@ -714,6 +714,13 @@ def test_demo_scene_builds_and_exports(scene, name):
     assert clip[3] > 0 and np.all((uv > 0) & (uv < 1))
     if name == "many_lights":
         assert len(sd.lights) >= 24
+    # the spheres' faces in one fixed order (bmesh makes them in an order that changes between
+    # processes, and with it the BVH and the ray-traced images); boxes and walls are written
+    # face by face
+    for ob in sc.objects:
+        if ob.type == "MESH" and len(ob.data.polygons) >= 64:
+            faces = [tuple(sorted(p.vertices)) for p in ob.data.polygons]
+            assert faces == sorted(faces), ob.name
     if name == "emissive_panel":
         assert not sd.lights and any(m.is_emissive for m in sd.materials)
     if name == "courtyard_loft":  # lit by the HDRI alone, evaluated exactly; textured floor

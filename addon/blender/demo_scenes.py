@@ -147,6 +147,12 @@ class _Builder:
         bm.loops.layers.uv.new("UVMap")
         bmesh.ops.create_uvsphere(bm, u_segments=segments, v_segments=rings, radius=radius,
                                   calc_uvs=True)
+        # bmesh makes the sphere's faces in an order that changes from process to process (the
+        # vertices keep theirs): sorted by their vertices, the exported triangles, and so the
+        # BVH and every ray-traced image, are the same in every process
+        bm.faces.index_update()
+        rank = {f.index: r for r, f in enumerate(sorted(bm.faces, key=lambda f: sorted(v.index for v in f.verts)))}
+        bm.faces.sort(key=lambda f: rank[f.index])
         bm.to_mesh(me)
         bm.free()
         me.shade_smooth()
