@@ -189,3 +189,32 @@ def test_budget_floor_runs_direct_when_everything_that_fits_is_worse():
     assert auto.choose(shares, table, 32, 32, budget_ms=100.0 / auto.DIRECT_SLACK).candidate == "RESTIR_DI"
     assert auto.choose(shares, table, 32, 32, budget_ms=300.0).candidate == "RTXGI"
     assert auto.choose(shares, table, 32, 32, budget_ms=0.0).candidate == "RTXGI"
+
+
+def test_a_candidate_measured_over_the_budget_is_replaced_in_the_same_render(monkeypatch):
+    """A table that predicts RTXGI at 1 ms and DIRECT at a tenth of that: at a budget of 0.6x
+    RTXGI's measured ms/frame, AUTO starts RTXGI, measures it over the budget, keeps the
+    scene's cost factor and finishes the render with DIRECT (the samples asked for, a finite
+    image); the next render of the scene plans DIRECT from the start."""
+    shares = {"direct": 0.5, "indirect_diffuse": 0.5, "indirect_glossy": 0.0}
+    table = {"width": SIZE, "height": SIZE, "scenes": {"s": {"shares": shares}},
+             "rows": [{"scene": "s", "candidate": "RTXGI", "relmse": 0.01, "ms": 1.0},
+                      {"scene": "s", "candidate": "DIRECT", "relmse": 0.2, "ms": 0.1}]}
+    monkeypatch.setattr(auto, "load_table", lambda *a, **k: table)
+    sc = demo_scenes.build_demo("cornell", resolution=SIZE)
+    key = "auto_replan"
+    try:
+        sd = _export(sc)
+        rtxgi = session.render(sd, "AUTO", 0, 6, session=key, auto={"candidate": "RTXGI"})
+        budget = 0.6 * rtxgi.frame_ms
+        res = session.render(sd, "AUTO", 0, 6, session=key, auto={"budget_ms": budget})
+        assert res.auto["candidate"] == "DIRECT", res.auto["notes"]
+        assert any(n.startswith("re-planned: RTXGI") for n in res.auto["notes"]), res.auto["notes"]
+        assert res.samples == 6 and np.isfinite(res.image).all()
+        again = session.render(sd, "AUTO", 0, 2, session=key, auto={"budget_ms": budget})
+        assert again.auto["candidate"] == "DIRECT"
+        assert any(n.startswith("predicted costs x") for n in again.auto["notes"]), again.auto["notes"]
+        assert not any(n.startswith("re-planned") for n in again.auto["notes"])
+    finally:
+        session.release_session(key)
+        bpy.data.scenes.remove(sc)

@@ -180,7 +180,10 @@ def write_md(path: Path, rows: list, a):
          f"**Mesa llvmpipe on 2 shared CPU cores** (no GPU; they vary by tens of percent from run to run): "
          f"compare them as ratios only. RESTIR_GI runs through its default SVGF; PT at {a.frames} spp. "
          "Written by `scripts/bench_auto.py --out docs/results`; the demo scenes are AUTO's table "
-         "(`addon/render/auto_table.json`), the last three (`blender_tests/scenes_auto.py`) are not.", "",
+         "(`addon/render/auto_table.json`), the last three (`blender_tests/scenes_auto.py`) are not. "
+         "AUTO measures its own frames: a candidate measured over the budget and beyond 1.25x its "
+         "prediction sets the scene's cost factor, and the render starts again with the candidate "
+         "that plan picks (the per-scene notes say where).", "",
          "| scene | budget ms | AUTO choice (class) | AUTO relMSE | AUTO ms (fits?) | best fitting single | "
          "its relMSE | DIRECT relMSE | result |", "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
@@ -202,7 +205,8 @@ def write_md(path: Path, rows: list, a):
         for r in over:
             au = r["auto"]
             L.append(f"- **{r['scene']}**: {au['candidate']} predicted {au['predicted_ms']:.0f} ms (the table's time on "
-                     f"class {au['scene_class']}, scaled by pixel count), measured {au['ms']:.0f} ms against a "
+                     f"class {au['scene_class']}, scaled by pixel count and the scene's measured cost factor), "
+                     f"measured {au['ms']:.0f} ms against a "
                      f"{r['budget_ms']:.0f} ms budget; DIRECT took {r['singles']['DIRECT']['ms']:.0f} ms here.")
     L += ["", "## Per scene", ""]
     for r in rows:
@@ -215,6 +219,9 @@ def write_md(path: Path, rows: list, a):
               f"predicted relMSE {au['predicted_relmse']:.4f}, {au['predicted_ms']:.0f} ms) at a budget of "
               f"{r['budget_ms']:.0f} ms; measured relMSE {au['relmse']:.4f}, {au['ms']:.0f} ms/frame "
               f"({'within' if r['auto_fits_budget'] else 'over'} the budget).", ""]
+        replans = [n for n in au.get("notes", []) if n.startswith(("re-planned", "predicted costs"))]
+        if replans:
+            L += ["Planning: " + "; ".join(replans) + ".", ""]
         sk = list(au["skipped"].values())
         L.append("Skipped effects: " + ("; ".join(f"{e}: \"{why}\"" for e, why in au["skipped"].items())
                                         if sk else "none") + ".")

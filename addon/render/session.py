@@ -72,6 +72,7 @@ class Session:
         self.sample_counter = 0
         self._last_graph = None
         self._shares = None  # effect_shares.SharesCache (AUTO), made on first use
+        self._cost_factor: dict = {}  # (scene version, size) -> AUTO's measured cost factor
 
     def effect_shares(self, scene: SceneData):
         """The measured effect shares of ``scene`` (cached per scene version and camera)."""
@@ -88,10 +89,41 @@ class Session:
         plan = auto_mod.choose(shares.shares, auto_mod.load_table(), scene.width, scene.height,
                                budget_ms=float(o.get("budget_ms", 0.0) or 0.0),
                                target_error=float(o.get("target_error", 0.0) or 0.0),
-                               threshold=float(o.get("threshold", 0.01)), force=o.get("candidate"))
+                               threshold=float(o.get("threshold", 0.01)), force=o.get("candidate"),
+                               cost_factor=self._cost_factor.get(self._cost_key(scene), 1.0))
         plan.notes.append(f"shares measured at {shares.size[0]}x{shares.size[1]}, {shares.samples} spp, "
                           f"{shares.time_ms:.0f} ms")
         return plan
+
+    def _cost_key(self, scene: SceneData):
+        return (self.gpu_scene.version, scene.width, scene.height)
+
+    def _auto_over_budget(self, scene: SceneData, plan, frames_acc, prev_frame, auto: dict | None):
+        """After a few accumulated frames of an AUTO render with a budget: when they measure
+        over the budget and beyond REPLAN_FACTOR x the prediction, keep the scene's cost factor
+        and say whether the plan it gives picks another candidate (the render restarts).
+        None: not measured yet (fewer than two frames complete). The median of the latest four
+        frames is taken."""
+        from .techniques import auto as auto_mod
+        budget = float(plan.budget_ms or 0.0)
+        if budget <= 0.0 or not plan.predicted_ms or (auto or {}).get("candidate"):
+            return False
+        done = [f for f in frames_acc if f.done]
+        if len(done) < 2:
+            return None
+        recent = done[-4:]  # the latest frames: a cache's cost can grow as it fills
+        before = done[-5] if len(done) > 4 else prev_frame
+        measured = statistics.median(frame_sync.frame_interval_ms(recent, before))
+        factor = measured / plan.predicted_ms
+        if measured <= budget or factor <= auto_mod.REPLAN_FACTOR:
+            return False
+        key = self._cost_key(scene)
+        self._cost_factor[key] = self._cost_factor.get(key, 1.0) * factor
+        again = self.auto_plan(scene, auto)
+        if again.candidate == plan.candidate:
+            return False
+        self._replanned = (plan.candidate, measured, len(done))
+        return True
 
     # -------------------------------------------------------------- helpers
     def _graph(self, technique_id: str, quality: int, denoiser: str = "NONE", use_taa: bool = False,
@@ -304,6 +336,24 @@ class Session:
                 frames_acc.append(fr)
                 self.acc_count += 1
                 acc_done += 1
+                # checked after every frame: a candidate's cost can grow as its caches fill
+                if plan_auto is not None and acc_done < samples and \
+                        self._auto_over_budget(scene, plan_auto, frames_acc, prev_frame, auto):
+                    # the chosen candidate measured over the budget on this scene: start again
+                    # with the plan its measured cost gives
+                    sync.wait(fr)
+                    for f in frames_all:
+                        f.timers.drop()
+                    first, measured, n = self._replanned
+                    result = yield from self.render_steps(
+                        scene, technique, quality, samples, cancel=cancel, progress=progress,
+                        continue_accumulation=False, keep_history=keep_history, camera_cut=True,
+                        warmup=warmup, denoiser=denoiser, use_taa=use_taa, params=params, auto=auto)
+                    result.auto.setdefault("notes", []).append(
+                        f"re-planned: {first} measured {measured:.0f} ms/frame over {n} frames, over the "
+                        f"{plan_auto.budget_ms:.0f} ms budget")
+                    result.total_ms = (time.perf_counter() - t_start) * 1e3
+                    return result
             if progress is not None:
                 progress((i + 1) / max(n_warm + samples, 1))
             yield (i + 1) / max(n_warm + samples, 1)

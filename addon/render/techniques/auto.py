@@ -11,11 +11,19 @@ is RTXGI with SSR's passes using the probes as miss fallback). ``auto_table.json
 (written by ``scripts/sweep_auto.py``) holds, per demo scene, its measured shares and each
 candidate's relMSE against Cycles full and ms/frame on llvmpipe. The scene's class is the
 demo scene nearest in shares (L1); the candidate's predicted error is the table's relMSE
-on that class, its predicted cost the table's ms scaled by pixel count. AUTO takes the most
+on that class, its predicted cost the table's ms scaled by pixel count and by the scene's
+measured cost factor (below). AUTO takes the most
 accurate candidate whose predicted cost fits the frame budget (0 = unlimited), or DIRECT when
 every one that fits is predicted worse than DIRECT and DIRECT's cost is within
 ``DIRECT_SLACK`` of the budget; with a target error, the cheapest one predicted to reach it. Without a table AUTO runs the bundle
 DIRECT + SSDO + SSR (``DEFAULT_MEMBERS``).
+
+The class's costs need not hold for the scene (many shadow-mapped lights, many triangles). So
+a render with a budget measures its own frames: when the chosen candidate's measured ms/frame
+is over the budget and more than ``REPLAN_FACTOR`` times the prediction, the session keeps
+measured / predicted as the scene's cost factor, plans again with every candidate's cost
+scaled by it and, when that picks another candidate, restarts the render with it. Later plans
+of the same scene start from the factor.
 """
 from __future__ import annotations
 
@@ -60,6 +68,9 @@ COMPOSITIONS = ("DIRECT+SSDO+SSR", "DDGI+SSR")  # the candidates that are not on
 # runs DIRECT if its predicted cost is within this factor of the budget (llvmpipe's ms/frame
 # drift by 10-30 % from run to run, more than the gap between candidates of similar cost).
 DIRECT_SLACK = 1.25
+# A measured frame over the budget re-plans only beyond this factor over the prediction (the
+# run-to-run drift of llvmpipe's ms/frame)
+REPLAN_FACTOR = 1.25
 TABLE_PATH = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "auto_table.json")
 # effects with passes of their own that the threshold can skip, and the share that measures them
 SKIPPABLE = {Effect.INDIRECT_DIFFUSE: "indirect_diffuse", Effect.INDIRECT_SPECULAR: "indirect_glossy"}
@@ -134,9 +145,12 @@ def scene_class(shares: dict, table: dict) -> str:
 
 
 def choose(shares: dict, table: dict | None, width: int, height: int, *, budget_ms: float = 0.0,
-           target_error: float = 0.0, threshold: float = 0.01, force: str | None = None) -> AutoPlan:
+           target_error: float = 0.0, threshold: float = 0.01, force: str | None = None,
+           cost_factor: float = 1.0) -> AutoPlan:
     """The plan for a scene with measured ``shares`` (effect -> fraction) at ``width`` x ``height``.
-    ``force``: a candidate id to run whatever the table says (the sweep, comparisons)."""
+    ``force``: a candidate id to run whatever the table says (the sweep, comparisons).
+    ``cost_factor``: the scene's measured cost over the table's prediction (every candidate's
+    predicted ms is scaled by it)."""
     skipped = {}
     for eff, key in SKIPPABLE.items():
         s = float(shares.get(key, 0.0))
@@ -157,7 +171,9 @@ def choose(shares: dict, table: dict | None, width: int, height: int, *, budget_
         return plan
     cls = scene_class(shares, table)
     plan.scene_class = cls
-    scale = (width * height) / float(table["width"] * table["height"])
+    scale = (width * height) / float(table["width"] * table["height"]) * float(cost_factor)
+    if cost_factor != 1.0:
+        plan.notes.append(f"predicted costs x {cost_factor:.2f}, measured on this scene")
     rows = {r["candidate"]: r for r in table["rows"] if r["scene"] == cls and r["candidate"] in CANDIDATES}
     diff_skip = Effect.INDIRECT_DIFFUSE in skipped
     gloss_skip = Effect.INDIRECT_SPECULAR in skipped
