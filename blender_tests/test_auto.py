@@ -218,3 +218,30 @@ def test_a_candidate_measured_over_the_budget_is_replaced_in_the_same_render(mon
     finally:
         session.release_session(key)
         bpy.data.scenes.remove(sc)
+
+
+def test_viewport_redraws_over_the_budget_plan_again(monkeypatch):
+    """The viewport renders one frame per redraw, so no render has frames of its own to
+    measure: the session keeps the latest four frames of the candidate, and once they measure
+    over the budget the next redraw runs the candidate the cost factor gives."""
+    shares = {"direct": 0.5, "indirect_diffuse": 0.5, "indirect_glossy": 0.0}
+    table = {"width": SIZE, "height": SIZE, "scenes": {"s": {"shares": shares}},
+             "rows": [{"scene": "s", "candidate": "RTXGI", "relmse": 0.01, "ms": 1.0},
+                      {"scene": "s", "candidate": "DIRECT", "relmse": 0.2, "ms": 0.1}]}
+    monkeypatch.setattr(auto, "load_table", lambda *a, **k: table)
+    sc = demo_scenes.build_demo("cornell", resolution=SIZE)
+    key = "auto_replan_viewport"
+    try:
+        sd = _export(sc)
+        rtxgi = session.render(sd, "AUTO", 0, 6, session=key, auto={"candidate": "RTXGI"})
+        budget = {"budget_ms": 0.6 * rtxgi.frame_ms}
+        seen = []
+        for _ in range(8):
+            r = session.render(sd, "AUTO", 0, 1, session=key, keep_history=True, continue_accumulation=True,
+                               auto=budget)
+            assert np.isfinite(r.image).all()
+            seen.append(r.auto["candidate"])
+        assert seen[:3] == ["RTXGI"] * 3 and seen[-1] == "DIRECT", seen
+    finally:
+        session.release_session(key)
+        bpy.data.scenes.remove(sc)

@@ -73,6 +73,7 @@ class Session:
         self._last_graph = None
         self._shares = None  # effect_shares.SharesCache (AUTO), made on first use
         self._cost_factor: dict = {}  # (scene version, size) -> AUTO's measured cost factor
+        self._auto_recent: dict = {}  # ((scene version, size), candidate) -> latest frame times
 
     def effect_shares(self, scene: SceneData):
         """The measured effect shares of ``scene`` (cached per scene version and camera)."""
@@ -98,31 +99,48 @@ class Session:
     def _cost_key(self, scene: SceneData):
         return (self.gpu_scene.version, scene.width, scene.height)
 
-    def _auto_over_budget(self, scene: SceneData, plan, frames_acc, prev_frame, auto: dict | None):
-        """After a few accumulated frames of an AUTO render with a budget: when they measure
-        over the budget and beyond REPLAN_FACTOR x the prediction, keep the scene's cost factor
-        and say whether the plan it gives picks another candidate (the render restarts).
-        None: not measured yet (fewer than two frames complete). The median of the latest four
-        frames is taken."""
+    @staticmethod
+    def _auto_budgeted(plan, auto: dict | None) -> bool:
+        return float(plan.budget_ms or 0.0) > 0.0 and bool(plan.predicted_ms) and not (auto or {}).get("candidate")
+
+    def _auto_over_budget(self, scene: SceneData, plan, measured: float, auto: dict | None) -> bool:
+        """AUTO's chosen candidate measured ``measured`` ms/frame on ``scene``: when that is over
+        the budget and beyond REPLAN_FACTOR x the prediction, keep the scene's cost factor and
+        say whether the plan it gives picks another candidate."""
         from .techniques import auto as auto_mod
-        budget = float(plan.budget_ms or 0.0)
-        if budget <= 0.0 or not plan.predicted_ms or (auto or {}).get("candidate"):
+        if measured <= float(plan.budget_ms) or measured / plan.predicted_ms <= auto_mod.REPLAN_FACTOR:
+            return False
+        key = self._cost_key(scene)
+        self._cost_factor[key] = self._cost_factor.get(key, 1.0) * measured / plan.predicted_ms
+        return self.auto_plan(scene, auto).candidate != plan.candidate
+
+    def _auto_frames_over_budget(self, scene: SceneData, plan, frames_acc, prev_frame, auto: dict | None) -> bool:
+        """Within a render: the median of the latest four complete frames (a cache's cost can
+        grow as it fills), once two are complete."""
+        if not self._auto_budgeted(plan, auto):
             return False
         done = [f for f in frames_acc if f.done]
         if len(done) < 2:
-            return None
-        recent = done[-4:]  # the latest frames: a cache's cost can grow as it fills
-        before = done[-5] if len(done) > 4 else prev_frame
-        measured = statistics.median(frame_sync.frame_interval_ms(recent, before))
-        factor = measured / plan.predicted_ms
-        if measured <= budget or factor <= auto_mod.REPLAN_FACTOR:
             return False
-        key = self._cost_key(scene)
-        self._cost_factor[key] = self._cost_factor.get(key, 1.0) * factor
-        again = self.auto_plan(scene, auto)
-        if again.candidate == plan.candidate:
+        before = done[-5] if len(done) > 4 else prev_frame
+        measured = statistics.median(frame_sync.frame_interval_ms(done[-4:], before))
+        if not self._auto_over_budget(scene, plan, measured, auto):
             return False
         self._replanned = (plan.candidate, measured, len(done))
+        return True
+
+    def _auto_redraws_over_budget(self, scene: SceneData, plan, frame_times: list, auto: dict | None) -> bool:
+        """Across calls of a frame or two each (the viewport): the median of the latest four
+        frames of the same candidate on the same scene; when over, the next call plans with
+        the cost factor."""
+        if not self._auto_budgeted(plan, auto) or not frame_times:
+            return False
+        rkey = (self._cost_key(scene), plan.candidate)
+        recent = self._auto_recent.get(rkey, []) + list(frame_times)
+        self._auto_recent = {rkey: recent[-4:]}
+        if len(recent) < 4 or not self._auto_over_budget(scene, plan, statistics.median(recent[-4:]), auto):
+            return False
+        self._auto_recent = {}
         return True
 
     # -------------------------------------------------------------- helpers
@@ -338,7 +356,7 @@ class Session:
                 acc_done += 1
                 # checked after every frame: a candidate's cost can grow as its caches fill
                 if plan_auto is not None and acc_done < samples and \
-                        self._auto_over_budget(scene, plan_auto, frames_acc, prev_frame, auto):
+                        self._auto_frames_over_budget(scene, plan_auto, frames_acc, prev_frame, auto):
                     # the chosen candidate measured over the budget on this scene: start again
                     # with the plan its measured cost gives
                     sync.wait(fr)
@@ -393,6 +411,10 @@ class Session:
             self.rc.barrier_external(["gbuffer.position", "gbuffer.normal", "gbuffer.albedo", "gbuffer.geonormal"])
             aovs.update(self._gbuffer_aovs(scene))
         effects = sorted({e.value for p in plan.active for e in p.provides} & {e.value for e in analysis.needed})
+        auto_record = plan_auto.as_dict() if plan_auto is not None else {}
+        if plan_auto is not None and self._auto_redraws_over_budget(scene, plan_auto, frame_times, auto):
+            auto_record["notes"].append(f"{plan_auto.candidate} measured over the {plan_auto.budget_ms:.0f} ms "
+                                        "budget over the latest frames: the next frame is planned again")
         # what the scene export and the passes that ran approximated (e.g. DIRECT's many lights)
         warnings = list(scene.warnings) + [n for p in plan.active for n in getattr(p, "notes", ())]
         if alpha_note:
@@ -405,7 +427,7 @@ class Session:
             cancelled=bool(cancel is not None and cancel.is_set()),
             setup_ms=float(setup_ms), prep_ms=float(prep_ms), warmup_frames=int(warm_done),
             warmup_ms=float(warmup_ms), history_resets=list(reset),
-            pass_order=graph.order, auto=plan_auto.as_dict() if plan_auto is not None else {})
+            pass_order=graph.order, auto=auto_record)
 
     def _setup_clock(self) -> float:
         """Milliseconds of one-time work done so far: shader compiles and scene setup

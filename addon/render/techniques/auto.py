@@ -22,8 +22,10 @@ The class's costs need not hold for the scene (many shadow-mapped lights, many t
 a render with a budget measures its own frames: when the chosen candidate's measured ms/frame
 is over the budget and more than ``REPLAN_FACTOR`` times the prediction, the session keeps
 measured / predicted as the scene's cost factor, plans again with every candidate's cost
-scaled by it and, when that picks another candidate, restarts the render with it. Later plans
-of the same scene start from the factor.
+scaled by it and, when that picks another candidate, restarts the render with it. A viewport
+renders one frame per call: the session keeps the candidate's latest four frames across calls,
+and once they measure over, the next call plans with the factor. Later plans of the same scene
+start from the factor.
 """
 from __future__ import annotations
 
