@@ -72,8 +72,8 @@ class Session:
         self.sample_counter = 0
         self._last_graph = None
         self._shares = None  # effect_shares.SharesCache (AUTO), made on first use
-        self._cost_factor: dict = {}  # (scene version, size) -> AUTO's measured cost factor
-        self._auto_recent: dict = {}  # ((scene version, size), candidate) -> latest frame times
+        self._cost_factor: dict = {}  # _cost_key -> AUTO's measured cost factor (the latest scene only)
+        self._auto_recent: dict = {}  # (_cost_key, candidate) -> its latest frame times
 
     def effect_shares(self, scene: SceneData):
         """The measured effect shares of ``scene`` (cached per scene version and camera)."""
@@ -96,8 +96,12 @@ class Session:
                           f"{shares.time_ms:.0f} ms")
         return plan
 
-    def _cost_key(self, scene: SceneData):
-        return (self.gpu_scene.version, scene.width, scene.height)
+    @staticmethod
+    def _cost_key(scene: SceneData):
+        """What AUTO's measured cost factor holds for: the scene, its size and what its cost
+        grows with (lights, triangles). Moving things keeps it, so an artist's edits do not
+        send the viewport back to a candidate already measured over the budget."""
+        return (scene.name, scene.width, scene.height, len(scene.lights), scene.triangle_count)
 
     @staticmethod
     def _auto_budgeted(plan, auto: dict | None) -> bool:
@@ -111,23 +115,24 @@ class Session:
         if measured <= float(plan.budget_ms) or measured / plan.predicted_ms <= auto_mod.REPLAN_FACTOR:
             return False
         key = self._cost_key(scene)
-        self._cost_factor[key] = self._cost_factor.get(key, 1.0) * measured / plan.predicted_ms
+        self._cost_factor = {key: self._cost_factor.get(key, 1.0) * measured / plan.predicted_ms}
         return self.auto_plan(scene, auto).candidate != plan.candidate
 
-    def _auto_frames_over_budget(self, scene: SceneData, plan, frames_acc, prev_frame, auto: dict | None) -> bool:
+    def _auto_frames_over_budget(self, scene: SceneData, plan, frames_acc, prev_frame,
+                                 auto: dict | None) -> str | None:
         """Within a render: the median of the latest four complete frames (a cache's cost can
-        grow as it fills), once two are complete."""
+        grow as it fills), once two are complete. Returns the re-plan's note, or None."""
         if not self._auto_budgeted(plan, auto):
-            return False
+            return None
         done = [f for f in frames_acc if f.done]
         if len(done) < 2:
-            return False
+            return None
         before = done[-5] if len(done) > 4 else prev_frame
         measured = statistics.median(frame_sync.frame_interval_ms(done[-4:], before))
         if not self._auto_over_budget(scene, plan, measured, auto):
-            return False
-        self._replanned = (plan.candidate, measured, len(done))
-        return True
+            return None
+        return (f"re-planned: {plan.candidate} measured {measured:.0f} ms/frame over {len(done)} frames, "
+                f"over the {plan.budget_ms:.0f} ms budget")
 
     def _auto_redraws_over_budget(self, scene: SceneData, plan, frame_times: list, auto: dict | None) -> bool:
         """Across calls of a frame or two each (the viewport): the median of the latest four
@@ -355,21 +360,19 @@ class Session:
                 self.acc_count += 1
                 acc_done += 1
                 # checked after every frame: a candidate's cost can grow as its caches fill
-                if plan_auto is not None and acc_done < samples and \
-                        self._auto_frames_over_budget(scene, plan_auto, frames_acc, prev_frame, auto):
+                replanned = (self._auto_frames_over_budget(scene, plan_auto, frames_acc, prev_frame, auto)
+                             if plan_auto is not None and acc_done < samples else None)
+                if replanned:
                     # the chosen candidate measured over the budget on this scene: start again
                     # with the plan its measured cost gives
                     sync.wait(fr)
                     for f in frames_all:
                         f.timers.drop()
-                    first, measured, n = self._replanned
                     result = yield from self.render_steps(
                         scene, technique, quality, samples, cancel=cancel, progress=progress,
                         continue_accumulation=False, keep_history=keep_history, camera_cut=True,
                         warmup=warmup, denoiser=denoiser, use_taa=use_taa, params=params, auto=auto)
-                    result.auto.setdefault("notes", []).append(
-                        f"re-planned: {first} measured {measured:.0f} ms/frame over {n} frames, over the "
-                        f"{plan_auto.budget_ms:.0f} ms budget")
+                    result.auto.setdefault("notes", []).append(replanned)
                     result.total_ms = (time.perf_counter() - t_start) * 1e3
                     return result
             if progress is not None:

@@ -25,7 +25,7 @@ measured / predicted as the scene's cost factor, plans again with every candidat
 scaled by it and, when that picks another candidate, restarts the render with it. A viewport
 renders one frame per call: the session keeps the candidate's latest four frames across calls,
 and once they measure over, the next call plans with the factor. Later plans of the same scene
-start from the factor.
+start from the factor, until its lights or triangle count change.
 """
 from __future__ import annotations
 
