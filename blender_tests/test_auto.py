@@ -242,6 +242,12 @@ def test_viewport_redraws_over_the_budget_plan_again(monkeypatch):
             assert np.isfinite(r.image).all()
             seen.append(r.auto["candidate"])
         assert seen[:3] == ["RTXGI"] * 3 and seen[-1] == "DIRECT", seen
+        # an artist's edit (a light moved) keeps the measured factor: no return to RTXGI
+        sd.lights[0].matrix = sd.lights[0].matrix.copy()
+        sd.lights[0].matrix[0, 3] += 0.05
+        r = session.render(sd, "AUTO", 0, 1, session=key, keep_history=True, auto=budget)
+        assert r.auto["candidate"] == "DIRECT"
+        assert any(n.startswith("predicted costs x") for n in r.auto["notes"]), r.auto["notes"]
     finally:
         session.release_session(key)
         bpy.data.scenes.remove(sc)
