@@ -191,7 +191,7 @@ def _light_views(L, li, res, sun_extent, cam, lo, hi, center, radius) -> list[di
         return [{"vp": vp, "origin": eye, "ortho": 1.0, "fwd": d, "texel": 2.0 * r / res, "light": li}]
     origin = np.asarray(L.position, np.float64)
     far = float(np.linalg.norm(origin - center)) + radius * 1.01 + 1e-3
-    near = max(1e-3, far * 1e-4)
+    near = max(far * 1e-4, min(1e-3, far * 1e-3))  # 1 mm, or a thousandth of a smaller scene
     if L.type == LightType.SPOT and L.spot_size <= math.radians(120.0):
         fov = min(math.radians(150.0), L.spot_size * 1.02 + math.radians(1.0))
         d = L.direction.astype(np.float64)

@@ -305,7 +305,7 @@ class ShadowPass(Pass):
         origin, normal = self._sample_origin(rec, scene, k, rng)
         origin = np.asarray(origin, np.float64)
         far = float(np.linalg.norm(origin - center)) + radius * 1.01 + 1e-3
-        near = max(1e-3, far * 1e-5)
+        near = max(far * 1e-5, min(1e-3, far * 1e-3))  # 1 mm, or a thousandth of a smaller scene
         L = rec.get("light")
         if L is not None and L.type == LightType.SPOT and L.spot_size <= math.radians(120.0):
             # one perspective view around the cone (10% margin for the blend and scale)
