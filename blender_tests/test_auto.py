@@ -191,63 +191,57 @@ def test_budget_floor_runs_direct_when_everything_that_fits_is_worse():
     assert auto.choose(shares, table, 32, 32, budget_ms=0.0).candidate == "RTXGI"
 
 
-def test_a_candidate_measured_over_the_budget_is_replaced_in_the_same_render(monkeypatch):
-    """A table that predicts RTXGI at 1 ms and DIRECT at a tenth of that: at a budget of 0.6x
-    RTXGI's measured ms/frame, AUTO starts RTXGI, measures it over the budget, keeps the
-    scene's cost factor and finishes the render with DIRECT (the samples asked for, a finite
-    image); the next render of the scene plans DIRECT from the start."""
+@pytest.fixture
+def mispredicted_cornell(monkeypatch, request):
+    """The Cornell box with a table that predicts RTXGI at 1 ms and DIRECT at a tenth of that,
+    and a budget of 0.6x RTXGI's measured ms/frame: (scene data, session key, budget)."""
     shares = {"direct": 0.5, "indirect_diffuse": 0.5, "indirect_glossy": 0.0}
     table = {"width": SIZE, "height": SIZE, "scenes": {"s": {"shares": shares}},
              "rows": [{"scene": "s", "candidate": "RTXGI", "relmse": 0.01, "ms": 1.0},
                       {"scene": "s", "candidate": "DIRECT", "relmse": 0.2, "ms": 0.1}]}
     monkeypatch.setattr(auto, "load_table", lambda *a, **k: table)
     sc = demo_scenes.build_demo("cornell", resolution=SIZE)
-    key = "auto_replan"
+    key = "auto_replan_" + request.node.name
     try:
         sd = _export(sc)
         rtxgi = session.render(sd, "AUTO", 0, 6, session=key, auto={"candidate": "RTXGI"})
-        budget = 0.6 * rtxgi.frame_ms
-        res = session.render(sd, "AUTO", 0, 6, session=key, auto={"budget_ms": budget})
-        assert res.auto["candidate"] == "DIRECT", res.auto["notes"]
-        assert any(n.startswith("re-planned: RTXGI") for n in res.auto["notes"]), res.auto["notes"]
-        assert res.samples == 6 and np.isfinite(res.image).all()
-        again = session.render(sd, "AUTO", 0, 2, session=key, auto={"budget_ms": budget})
-        assert again.auto["candidate"] == "DIRECT"
-        assert any(n.startswith("predicted costs x") for n in again.auto["notes"]), again.auto["notes"]
-        assert not any(n.startswith("re-planned") for n in again.auto["notes"])
+        yield sd, key, 0.6 * rtxgi.frame_ms
     finally:
         session.release_session(key)
         bpy.data.scenes.remove(sc)
 
 
-def test_viewport_redraws_over_the_budget_plan_again(monkeypatch):
+def test_a_candidate_measured_over_the_budget_is_replaced_in_the_same_render(mispredicted_cornell):
+    """At that budget AUTO starts RTXGI, measures it over the budget, keeps the scene's cost
+    factor and finishes the render with DIRECT (the samples asked for, a finite image); the
+    next render of the scene plans DIRECT from the start."""
+    sd, key, budget = mispredicted_cornell
+    res = session.render(sd, "AUTO", 0, 6, session=key, auto={"budget_ms": budget})
+    assert res.auto["candidate"] == "DIRECT", res.auto["notes"]
+    assert any(n.startswith("re-planned: RTXGI") for n in res.auto["notes"]), res.auto["notes"]
+    assert res.samples == 6 and np.isfinite(res.image).all()
+    again = session.render(sd, "AUTO", 0, 2, session=key, auto={"budget_ms": budget})
+    assert again.auto["candidate"] == "DIRECT"
+    assert any(n.startswith("predicted costs x") for n in again.auto["notes"]), again.auto["notes"]
+    assert not any(n.startswith("re-planned") for n in again.auto["notes"])
+
+
+def test_viewport_redraws_over_the_budget_plan_again(mispredicted_cornell):
     """The viewport renders one frame per redraw, so no render has frames of its own to
     measure: the session keeps the latest four frames of the candidate, and once they measure
     over the budget the next redraw runs the candidate the cost factor gives."""
-    shares = {"direct": 0.5, "indirect_diffuse": 0.5, "indirect_glossy": 0.0}
-    table = {"width": SIZE, "height": SIZE, "scenes": {"s": {"shares": shares}},
-             "rows": [{"scene": "s", "candidate": "RTXGI", "relmse": 0.01, "ms": 1.0},
-                      {"scene": "s", "candidate": "DIRECT", "relmse": 0.2, "ms": 0.1}]}
-    monkeypatch.setattr(auto, "load_table", lambda *a, **k: table)
-    sc = demo_scenes.build_demo("cornell", resolution=SIZE)
-    key = "auto_replan_viewport"
-    try:
-        sd = _export(sc)
-        rtxgi = session.render(sd, "AUTO", 0, 6, session=key, auto={"candidate": "RTXGI"})
-        budget = {"budget_ms": 0.6 * rtxgi.frame_ms}
-        seen = []
-        for _ in range(8):
-            r = session.render(sd, "AUTO", 0, 1, session=key, keep_history=True, continue_accumulation=True,
-                               auto=budget)
-            assert np.isfinite(r.image).all()
-            seen.append(r.auto["candidate"])
-        assert seen[:3] == ["RTXGI"] * 3 and seen[-1] == "DIRECT", seen
-        # an artist's edit (a light moved) keeps the measured factor: no return to RTXGI
-        sd.lights[0].matrix = sd.lights[0].matrix.copy()
-        sd.lights[0].matrix[0, 3] += 0.05
-        r = session.render(sd, "AUTO", 0, 1, session=key, keep_history=True, auto=budget)
-        assert r.auto["candidate"] == "DIRECT"
-        assert any(n.startswith("predicted costs x") for n in r.auto["notes"]), r.auto["notes"]
-    finally:
-        session.release_session(key)
-        bpy.data.scenes.remove(sc)
+    sd, key, budget_ms = mispredicted_cornell
+    budget = {"budget_ms": budget_ms}
+    seen = []
+    for _ in range(8):
+        r = session.render(sd, "AUTO", 0, 1, session=key, keep_history=True, continue_accumulation=True,
+                           auto=budget)
+        assert np.isfinite(r.image).all()
+        seen.append(r.auto["candidate"])
+    assert seen[:3] == ["RTXGI"] * 3 and seen[-1] == "DIRECT", seen
+    # an artist's edit (a light moved) keeps the measured factor: no return to RTXGI
+    sd.lights[0].matrix = sd.lights[0].matrix.copy()
+    sd.lights[0].matrix[0, 3] += 0.05
+    r = session.render(sd, "AUTO", 0, 1, session=key, keep_history=True, auto=budget)
+    assert r.auto["candidate"] == "DIRECT"
+    assert any(n.startswith("predicted costs x") for n in r.auto["notes"]), r.auto["notes"]

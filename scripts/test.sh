@@ -24,12 +24,8 @@ if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/
 fi
 
 workers="${GI_PREVIEW_TEST_WORKERS:-2}"
-run() {  # run <pytest args...>: the exit code, 5 (nothing collected) kept apart
-    set +e
+run() {  # run <pytest args...>; called as `run ... && rc=0 || rc=$?`, so a failure does not stop the script
     .venv/bin/python -m pytest blender_tests -q -rs --durations=30 "$@"
-    local rc=$?
-    set -e
-    return $rc
 }
 if [[ "$workers" == 0 ]]; then
     run "$@" && rc=0 || rc=$?
