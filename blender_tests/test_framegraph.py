@@ -59,6 +59,22 @@ def test_multi_writer_resource_keeps_declaration_order_of_versions():
     assert [s.name for s in g._plan.skipped] == ["bounce", "composite_a"]
 
 
+def test_plan_tells_each_pass_who_reads_its_output():
+    """A producer may ask the planned readers of what it writes what they can do without it
+    (the shadow pass leaves lights to rays only where every reader of its maps traces them):
+    ``consumers`` holds the planned readers, optional reads included, and nothing skipped."""
+    g = FrameGraph([P("gbuffer", writes=("gb",), always=True),
+                    P("shadows", writes=("atlas",), always=True),
+                    P("light", reads=("gb",), optional=("atlas",), writes=("color",), always=True),
+                    P("inject", reads=("gb", "atlas"), writes=("vox",), provides={Effect.INDIRECT_DIFFUSE})])
+    g.plan({Effect.INDIRECT_DIFFUSE})
+    names = lambda p: sorted(c.name for c in g.find(p).consumers)  # noqa: E731
+    assert names("shadows") == ["inject", "light"] and names("gbuffer") == ["inject", "light"]
+    assert names("light") == [] and names("inject") == []
+    g.plan(set())  # the inject pass is not needed: it is no consumer any more
+    assert names("shadows") == ["light"]
+
+
 def test_unproduced_read_names_the_pass_and_resource():
     g = FrameGraph([P("gbuffer", writes=("gb",), always=True), P("ssao", reads=("gb", "hiz"), writes=("ao",))])
     with pytest.raises(PlanError, match=r"pass 'ssao' reads 'hiz', which no pass"):

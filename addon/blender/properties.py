@@ -214,6 +214,10 @@ SETTINGS = (
             max=64, soft_max=32),
     Setting("shadow_resolution", "Shadow Resolution", "Texels along each side of a shadow map",
             (("shadows", "shadow_resolution"),), SHADOWED, max=4096, soft_max=2048),
+    Setting("shadow_rays", "Shadow Rays", "Rays per pixel per frame for shadows not taken from a shadow map: "
+            "lights with size (area, sphere and mesh lights) on images small enough that rays cost less than "
+            "their moving maps, and lights over the shadow-map budget (more: less noise in soft shadows)",
+            (("direct_light", "rt_shadow_rays"),), SHADOWED, max=8),
     Setting("atrous_iterations", "Filter Steps", "Blur steps of the à-trous filter (more: smoother, blurrier)",
             (("atrous", "iterations"),), ("ATROUS",), max=8, filter="ATROUS"),
     Setting("svgf_history", "History Length", "Most frames SVGF averages (more: less noise, more lag)",

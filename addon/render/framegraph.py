@@ -194,6 +194,9 @@ class Pass:
     params: tuple = ()  # of Param
     quality_ladder: tuple = ()  # of dicts, index = quality level
     always: bool = False  # runs whatever the scene needs (e.g. the G-buffer, the final resolve)
+    # the planned passes that read what this pass writes (set by FrameGraph.plan): a producer
+    # may ask its consumers what they can do without it (the shadow pass: who traces shadows)
+    consumers: tuple = ()
 
     def __init__(self, quality: int | None = None, **props):
         self.props = {p.name: p.default for p in self.params}
@@ -702,6 +705,10 @@ class FrameGraph:
                                 sorted(p.provides, key=lambda e: e.value)) or "not needed"
                 skipped.append(SkippedPass(p.name, sorted(e.value for e in p.provides), why))
         self._plan = Plan([self.passes[i] for i in order], skipped)
+        for p in self._plan.active:
+            outs = set(p.writes)
+            p.consumers = tuple(q for q in self._plan.active
+                                if q is not p and outs & (set(q.reads) | set(q.optional_reads)))
         return self._plan
 
     def _toposort(self, chosen: list[bool]) -> list[int]:

@@ -135,14 +135,29 @@ vec3 shade_light(int li, Surface s, vec3 P, vec3 N, vec3 V, inout Rng rng) {
 #ifndef RT_MAX_RESERVOIRS
 #define RT_MAX_RESERVOIRS 8
 #endif
-// Visibility of one point sampled on light L from the offset origin Po (0 or 1): the
-// ray-traced counterpart of light_visibility for lights without a shadow map.
-float rt_light_visibility(Light L, vec3 Po, vec3 Ng, inout Rng rng) {
+// One point sampled on light L, seen from the offset origin Po (the ray-traced counterpart
+// of the shadow maps, for lights without one): .x = the irradiance it stands for (Li cos / pdf,
+// luminance; 0 below the shading normal's horizon, where it is no part of the light's
+// irradiance), .y = 1 if the ray to it is blocked (below the geometric horizon: by the surface
+// itself). Shares of blocked light are ratios of these weights, never of bare hit counts: a
+// light half below a wall's horizon is not half in shadow.
+vec2 rt_light_sample(Light L, vec3 Po, vec3 N, vec3 Ng, inout Rng rng) {
     vec4 u = rng_next4(rng);
     LightSample ls = sample_light(L, Po, u.xy, u.z);
-    if (ls.pdf <= 0.0) return 1.0;         // nothing sampled (inside a sphere light): unshadowed
-    if (dot(ls.dir, Ng) <= 0.0) return 0.0;  // below the geometric horizon
-    return scene_occluded(Po, ls.dir, 0.0, ls.dist * (1.0 - 1e-4)) ? 0.0 : 1.0;
+    float cosn = dot(ls.dir, N);
+    if (ls.pdf <= 0.0 || cosn <= 0.0) return vec2(0.0);  // nothing sampled (inside a sphere light)
+    float w = luminance(ls.Li) * cosn / (ls.delta ? 1.0 : ls.pdf);
+    bool blocked = dot(ls.dir, Ng) <= 0.0 || scene_occluded(Po, ls.dir, 0.0, ls.dist * (1.0 - 1e-4));
+    return vec2(w, blocked ? 1.0 : 0.0);
+}
+
+// Visibility of a light outside the tile's list from one sampled point: 1 - its blocked
+// irradiance over the light's unshadowed irradiance E (unbiased; clamped at 0)
+float rt_far_visibility(Light L, vec3 Po, vec3 N, vec3 Ng, inout Rng rng) {
+    vec2 s = rt_light_sample(L, Po, N, Ng, rng);
+    if (s.y <= 0.0) return 1.0;
+    float E = luminance(light_irradiance(L, Po, N, u_mesh_exact_max, rng));
+    return E > 0.0 ? max(1.0 - s.x / E, 0.0) : 0.0;
 }
 
 // Is light j in the tile's list (ascending indices)?
@@ -218,10 +233,22 @@ void main() {
     // sum c_i V_i = sum c_i - sum c_i (1 - V_i): the unshadowed sum is exact, only the light
     // the shadows take away is estimated (c_j (1 - V_j) W / w_j per reservoir): no noise where
     // every candidate is visible, whatever the lights' colours
+    // each reservoir's share of blocked light is the ratio over the rays of every reservoir
+    // that holds the same light (weights: the irradiance each point stands for): exactly 0
+    // where the light is unoccluded and 1 in its umbra, whatever the single rays read
+    vec2 r_s[RT_MAX_RESERVOIRS];
+    for (int j = 0; j < K; ++j)
+        r_s[j] = r_idx[j] < 0 ? vec2(0.0) : rt_light_sample(lights[r_idx[j]], Po, N, Ng, rng);
     vec3 taken = vec3(0.0);
     for (int j = 0; j < K; ++j) {
         if (r_idx[j] < 0) continue;
-        float blocked = 1.0 - rt_light_visibility(lights[r_idx[j]], Po, Ng, rng);
+        float num = 0.0, den = 0.0;
+        for (int k = 0; k < K; ++k) {
+            if (r_idx[k] != r_idx[j]) continue;
+            num += r_s[k].x * r_s[k].y;
+            den += r_s[k].x;
+        }
+        float blocked = den > 0.0 ? num / den : 0.0;
         taken += r_c[j] * (blocked * wsum / (r_w[j] * float(K)));
     }
     // a channel can overshoot (a blocked light of another colour than the rest): clamp at 0
@@ -236,7 +263,7 @@ void main() {
         if (max3(c) <= 0.0) continue;
         Light L = lights[j];
         float vis = L.axis_w.w < 0.5 ? 1.0
-                  : (L.shadow.y > 0.5 ? light_visibility(L, P, N, Ng) : rt_light_visibility(L, Po, Ng, rng));
+                  : (L.shadow.y > 0.5 ? light_visibility(L, P, N, Ng) : rt_far_visibility(L, Po, N, Ng, rng));
         direct += c * (vis / (sel * float(u_far_samples)));
     }
 #endif

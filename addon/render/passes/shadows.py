@@ -17,6 +17,12 @@ directions) cost raster time each frame. Scenes whose materials cut holes redraw
 their shadows average a different stochastic alpha pattern each frame. Cube faces of a
 one-sided area light that look only behind it are left empty (they read as unlit, which the
 light's own cosine makes exact).
+
+Lights with size whose moving views would cost more raster time per frame than tracing their
+shadows (``ray_cost_texels``: a ray counted as that many map texels; the readers' rays per
+pixel, times the image's pixels) get no views: they are left to ray tracing like the lights
+over the budget (``ShadowSelection.traced``), provided every pass that reads the maps traces
+the shadows of lights without one (``shadow_rays_per_pixel``; VXGI's injection does not).
 """
 from __future__ import annotations
 
@@ -40,8 +46,11 @@ class ShadowSelection:
     light indices (shadow-casting point, spot, area and mesh lights; suns are always mapped),
     the ``budget`` and the ``frame`` (FrameState) it was made for."""
 
-    def __init__(self, frame=None, mapped=(), unmapped=(), budget: int = 0):
+    def __init__(self, frame=None, mapped=(), unmapped=(), budget: int = 0, traced=()):
         self.frame, self.mapped, self.unmapped, self.budget = frame, list(mapped), list(unmapped), budget
+        # of ``unmapped``: the lights with size left to ray tracing because their moving views
+        # would cost more raster time than the rays (the rest of ``unmapped`` is over the budget)
+        self.traced = list(traced)
 
     def release(self):
         pass
@@ -169,6 +178,10 @@ class ShadowPass(Pass):
         Param("max_shadow_maps", 8, 0, 1024,
               "shadow-map budget: point, spot, area and mesh lights that get shadow maps (those that "
               "matter most in view); the others are shadowed by ray tracing in direct_light"),
+        Param("ray_cost_texels", 8.0, 0.0, 1e6,
+              "lights with size: ray-traced instead of shadow-mapped when their maps' texels per "
+              "frame exceed pixels x shadow rays per pixel x this (a ray's cost in texels drawn); "
+              "0: always shadow maps"),
     )
     quality_ladder = (
         {"shadow_resolution": 256, "cascades": 2, "world_directions": 4, "light_samples": 1, "max_shadow_maps": 4},
@@ -408,8 +421,11 @@ class ShadowPass(Pass):
                  if L.cast_shadow and float(np.max(L.color)) > 0 and L.type != LightType.SUN]
         cands += [len(scene.lights) + gi for gi in range(len(rc.scene.emitters.groups))]
         budget = int(self["max_shadow_maps"])
+        traced = self._traced(rc, cands)
+        if traced:
+            cands = [li for li in cands if li not in set(traced)]
         if len(cands) <= budget:
-            return ShadowSelection(frame, cands, [], budget)
+            return ShadowSelection(frame, cands, traced, budget, traced)
         cull = rc.resources.get(LIGHT_CULL)
         score = None
         if cull is not None and cull.frame is frame and TILE_BOUNDS + PREV in rc.resources:
@@ -424,8 +440,53 @@ class ShadowPass(Pass):
                                        cull.info if cull is not None and cull.frame is frame else None)
         order = np.argsort(-score, kind="stable")
         keep = sorted(int(cands[i]) for i in order[:budget])
-        rest = sorted(set(cands) - set(keep))
-        return ShadowSelection(frame, keep, rest, budget)
+        rest = sorted((set(cands) - set(keep)) | set(traced))
+        return ShadowSelection(frame, keep, rest, budget, traced)
+
+    def _trace_rays(self, rc) -> int:
+        """Shadow rays per pixel per frame that every reader of the shadow maps traces for a
+        light without one (0 when any reader cannot: it would see the light unshadowed)."""
+        rays = [int(c.shadow_rays_per_pixel()) if hasattr(c, "shadow_rays_per_pixel") else 0
+                for c in self.consumers]
+        if not rays or min(rays) <= 0:
+            return 0
+        from ..scene_data import SceneError
+        try:
+            rc.scene.rt()  # the session's shared ray tracer (built once)
+        except SceneError:
+            return 0
+        return min(rays)
+
+    def _traced(self, rc, cands) -> list:
+        """The lights with size to shadow by ray tracing rather than shadow maps. Their views
+        move every frame (a new point on the light), so their maps are drawn every frame: a
+        cost fixed by the maps' size, whatever the image's. Rays cost per pixel, and give the
+        exact visibility of a point on the light. The lights are traced when their maps'
+        texels per frame exceed what the rays cost, counted in texels (``ray_cost_texels``):
+        on a small image, or with many points per light, rays are the cheaper."""
+        cost = float(self["ray_cost_texels"])
+        scene = rc.scene.scene
+        n = len(scene.lights)
+        moving, texels = [], 0.0
+        per_face = float(self["shadow_resolution"]) ** 2 * int(self["light_samples"])
+        budget = int(self["max_shadow_maps"])
+        for li in cands if cost > 0 else ():
+            L = scene.lights[li] if li < n else None
+            if L is None:  # an emissive mesh: six faces per point on it
+                faces = 6
+            elif L.type == LightType.AREA or (L.type in (LightType.POINT, LightType.SPOT) and L.radius > 0):
+                faces = 1 if L.type == LightType.SPOT and L.spot_size <= math.radians(120.0) else 6
+            else:
+                continue
+            if len(moving) < budget:  # the maps there would be: at most the budget's
+                texels += faces * per_face
+            moving.append(li)
+        if not moving:
+            return []
+        rays = self._trace_rays(rc)
+        if rays <= 0 or texels <= rc.width * rc.height * rays * cost:
+            return []
+        return moving
 
     def execute(self, rc, frame):
         import moderngl

@@ -3,7 +3,8 @@
 Passes: ``gbuffer`` (raster) → ``shadows`` (shadow atlas) → ``direct_light`` (compute).
 Every light type in Cycles' units; diffuse terms are exact (cosine law, polygon
 irradiance), glossy terms are Monte Carlo with MIS and converge over ``samples`` frames,
-as do soft shadows (the shadow views move over the light's surface each frame) and
+as do soft shadows (the shadow views move over the light's surface each frame, or, where
+that costs more than rays, shadow rays to points on the light: passes/shadows.py) and
 anti-aliasing (box-filter jitter). The world is the background and, like in Cycles'
 "direct" reference, a light: uniform radiance times each lobe's albedo, shadowed by the
 visibility of ``world_directions`` orthographic maps per frame (directions stratified on
@@ -17,9 +18,11 @@ points). No indirect light.
 | glossy_samples | 1–16 | light+BSDF sample pairs per light per pixel per frame |
 | mesh_exact_max | 0–256 | emissive meshes with at most this many triangles are integrated exactly |
 | world_directions | 0–64 | world-light visibility maps per frame |
+| rt_shadow_rays | 0–8 | shadow rays per pixel per frame for lights without a shadow map |
+| ray_cost_texels | 0–1e6 | lights with size are ray-traced where their moving maps cost more texels than this x the rays |
 
-Quality ladder (shadow px, glossy samples, world directions): 0 = 256, 1, 4; 1 = 512, 2, 8;
-2 = 1024, 4, 16; 3 = 2048, 8, 24.
+Quality ladder (shadow px, glossy samples, world directions, shadow rays): 0 = 256, 1, 4, 4;
+1 = 512, 2, 8, 4; 2 = 1024, 4, 16, 8; 3 = 2048, 8, 24, 8.
 Compared with: Cycles with all bounces off (direct light only).
 """
 from __future__ import annotations
@@ -60,13 +63,19 @@ class DirectLightPass(Pass):
         Param("far_samples", 4, 0, 8, "lights outside a tile's list: light samples per pixel per frame"),
         Param("cull_fraction", 0.05, 0.0, 1.0, "light culling when the graph has no light_cull pass (see light_cull.py)"),
     )
-    quality_ladder = ({"glossy_samples": 1}, {"glossy_samples": 2}, {"glossy_samples": 4}, {"glossy_samples": 8})
+    quality_ladder = ({"glossy_samples": 1, "rt_shadow_rays": 4}, {"glossy_samples": 2, "rt_shadow_rays": 4},
+                      {"glossy_samples": 4, "rt_shadow_rays": 8}, {"glossy_samples": 8, "rt_shadow_rays": 8})
 
     def __init__(self, quality=None, **props):
         super().__init__(quality, **props)
         self._culler = None  # inline culling (graphs without the light_cull pass)
         self.notes: list[str] = []  # what this frame approximated (stats)
         self.rt_used = False
+
+    def shadow_rays_per_pixel(self) -> int:
+        """Shadow rays per pixel per frame traced for lights without a shadow map (the
+        shadow pass leaves lights with size to them where rays cost less than maps)."""
+        return int(self["rt_shadow_rays"])
 
     def _cull(self, rc, frame):
         cull = rc.resources.get(LIGHT_CULL)
@@ -100,11 +109,14 @@ class DirectLightPass(Pass):
         self.rt_used = rt is not None
         n = int(rc.scene.light_count)
         if sel is not None and (sel.mapped or unmapped):
-            if unmapped:
-                how = (f"ray-traced shadows ({int(self['rt_shadow_rays'])} rays/pixel/frame, lights chosen by "
-                       f"contribution)" if rt is not None and int(self["rt_shadow_rays"]) > 0 else "no shadows")
-                notes.append(f"{len(sel.mapped)} of {len(sel.mapped) + len(unmapped)} shadow-casting lights have "
-                             f"shadow maps (budget {sel.budget}); the other {len(unmapped)}: {how}")
+            how = (f"ray-traced shadows ({int(self['rt_shadow_rays'])} rays/pixel/frame, lights chosen by "
+                   f"contribution)" if rt is not None and int(self["rt_shadow_rays"]) > 0 else "no shadows")
+            # lights with size left to rays because rays cost less (sel.traced) approximate
+            # nothing: only the lights over the budget are worth a note
+            over = len(unmapped) - len(sel.traced)
+            if over > 0:
+                notes.append(f"{len(sel.mapped)} of {len(sel.mapped) + over} shadow-casting lights have "
+                             f"shadow maps (budget {sel.budget}); the other {over}: {how}")
         if cull.info["partial"]:
             how = (f"estimated with {int(self['far_samples'])} light sample(s)/pixel/frame (unbiased)"
                    if rt is not None and int(self["far_samples"]) > 0 else "left out (biased dark)")
