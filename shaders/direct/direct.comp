@@ -20,7 +20,10 @@
 // sampling in proportion to their unshadowed contribution, one shadow ray to a point sampled
 // on each (unbiased: c_j (1 - V_j) W / w_j). Lights not in the tile's list are
 // estimated with u_far_samples light samples per pixel chosen by power (select_light), counted
-// only when the chosen light is not listed (unbiased). Both ray-traced parts need DIRECT_RT.
+// only when the chosen light is not listed (unbiased). A light with size that the shadow pass
+// left to rays because its moving maps would cost more (Light.shadow.x = -1) gets
+// u_rt_shadow_rays rays of its own, to points sampled on it (rt_light_visibility). All the
+// ray-traced parts need DIRECT_RT.
 #define USE_SCENE_BUFFERS
 #include "lib/common.glsl"
 #include "lib/rng.glsl"
@@ -59,7 +62,8 @@ layout(std430, binding = 6) readonly buffer TileLights { int tile_lights[]; };
 uniform int u_tile_capacity;
 uniform int u_tiles_x;
 uniform int u_tile_size;
-uniform int u_rt_shadow_rays;  // reservoirs (shadow rays) per pixel for listed lights without a shadow map
+uniform int u_rt_shadow_rays;  // shadow rays per pixel: the reservoirs of the lights over the budget, and
+                               // each light left to rays by the shadow pass
 uniform int u_far_samples;     // light samples per pixel for the lights not listed
 
 // Glossy lobe only: f*cos and its pdf under visible-normal sampling.
@@ -151,6 +155,18 @@ vec2 rt_light_sample(Light L, vec3 Po, vec3 N, vec3 Ng, inout Rng rng) {
     return vec2(w, blocked ? 1.0 : 0.0);
 }
 
+// Visibility of light L from n points sampled on it: the unblocked share of their weights (a
+// ratio estimator, as the shadow maps' origins are averaged: exactly 1 unoccluded, 0 in umbra)
+float rt_light_visibility(Light L, vec3 Po, vec3 N, vec3 Ng, int n, inout Rng rng) {
+    float num = 0.0, den = 0.0;
+    for (int k = 0; k < n; ++k) {
+        vec2 s = rt_light_sample(L, Po, N, Ng, rng);
+        num += s.x * (1.0 - s.y);
+        den += s.x;
+    }
+    return den > 0.0 ? num / den : 1.0;
+}
+
 // Visibility of a light outside the tile's list from one sampled point: 1 - its blocked
 // irradiance over the light's unshadowed irradiance E (unbiased; clamped at 0)
 float rt_far_visibility(Light L, vec3 Po, vec3 N, vec3 Ng, inout Rng rng) {
@@ -217,6 +233,10 @@ void main() {
         if (max3(c) <= 0.0) continue;
 #ifdef DIRECT_RT
         Light L = lights[i];
+        if (L.axis_w.w > 0.5 && L.shadow.x < -0.5) {  // a light with size the shadow pass left to rays
+            direct += c * rt_light_visibility(L, Po, N, Ng, u_rt_shadow_rays, rng);
+            continue;
+        }
         if (L.axis_w.w > 0.5 && L.shadow.y < 0.5 && K > 0) {  // casts shadows, no shadow map
             float w = max(luminance(c), 1e-30);
             wsum += w;

@@ -18,11 +18,11 @@ their shadows average a different stochastic alpha pattern each frame. Cube face
 one-sided area light that look only behind it are left empty (they read as unlit, which the
 light's own cosine makes exact).
 
-Lights with size whose moving views would cost more raster time per frame than tracing their
-shadows (``ray_cost_texels``: a ray counted as that many map texels; the readers' rays per
-pixel, times the image's pixels) get no views: they are left to ray tracing like the lights
-over the budget (``ShadowSelection.traced``), provided every pass that reads the maps traces
-the shadows of lights without one (``shadow_rays_per_pixel``; VXGI's injection does not).
+Of the lights within the budget, those with size whose moving views would cost more raster
+time per frame than tracing their shadows (``ray_cost_texels``: a ray counted as that many map
+texels; the readers' rays per pixel, times the image's pixels) get no views but rays of their
+own (``ShadowSelection.traced``, ``Light.shadow.x`` = -1), provided every pass that reads the
+maps traces shadows (``shadow_rays_per_pixel``; VXGI's injection does not).
 """
 from __future__ import annotations
 
@@ -421,11 +421,9 @@ class ShadowPass(Pass):
                  if L.cast_shadow and float(np.max(L.color)) > 0 and L.type != LightType.SUN]
         cands += [len(scene.lights) + gi for gi in range(len(rc.scene.emitters.groups))]
         budget = int(self["max_shadow_maps"])
-        traced = self._traced(rc, cands)
-        if traced:
-            cands = [li for li in cands if li not in set(traced)]
         if len(cands) <= budget:
-            return ShadowSelection(frame, cands, traced, budget, traced)
+            traced = self._traced(rc, cands)
+            return ShadowSelection(frame, sorted(set(cands) - set(traced)), traced, budget, traced)
         cull = rc.resources.get(LIGHT_CULL)
         score = None
         if cull is not None and cull.frame is frame and TILE_BOUNDS + PREV in rc.resources:
@@ -440,8 +438,9 @@ class ShadowPass(Pass):
                                        cull.info if cull is not None and cull.frame is frame else None)
         order = np.argsort(-score, kind="stable")
         keep = sorted(int(cands[i]) for i in order[:budget])
+        traced = self._traced(rc, keep)
         rest = sorted((set(cands) - set(keep)) | set(traced))
-        return ShadowSelection(frame, keep, rest, budget, traced)
+        return ShadowSelection(frame, sorted(set(keep) - set(traced)), rest, budget, traced)
 
     def _trace_rays(self, rc) -> int:
         """Shadow rays per pixel per frame that every reader of the shadow maps traces for a
@@ -457,20 +456,23 @@ class ShadowPass(Pass):
             return 0
         return min(rays)
 
-    def _traced(self, rc, cands) -> list:
-        """The lights with size to shadow by ray tracing rather than shadow maps. Their views
-        move every frame (a new point on the light), so their maps are drawn every frame: a
-        cost fixed by the maps' size, whatever the image's. Rays cost per pixel, and give the
-        exact visibility of a point on the light. The lights are traced when their maps'
-        texels per frame exceed what the rays cost, counted in texels (``ray_cost_texels``):
-        on a small image, or with many points per light, rays are the cheaper."""
+    def _traced(self, rc, keep) -> list:
+        """Of the lights that get shadows of their own (``keep``), those with size to shadow by
+        ray tracing rather than shadow maps. Their views move every frame (a new point on the
+        light), so their maps are drawn every frame: a cost fixed by the maps' size, whatever
+        the image's. Rays cost per pixel and see the exact visibility of points on the light.
+        A light is traced when its maps' texels per frame exceed what its rays cost, counted
+        in texels (``ray_cost_texels``): on a small image, or with many points per light, rays
+        are the cheaper. Each traced light gets its own rays (``Light.shadow.x`` = -1), as a
+        mapped light gets its own maps."""
         cost = float(self["ray_cost_texels"])
+        if cost <= 0 or not keep:
+            return []
         scene = rc.scene.scene
         n = len(scene.lights)
-        moving, texels = [], 0.0
         per_face = float(self["shadow_resolution"]) ** 2 * int(self["light_samples"])
-        budget = int(self["max_shadow_maps"])
-        for li in cands if cost > 0 else ():
+        moving = []
+        for li in keep:
             L = scene.lights[li] if li < n else None
             if L is None:  # an emissive mesh: six faces per point on it
                 faces = 6
@@ -478,15 +480,14 @@ class ShadowPass(Pass):
                 faces = 1 if L.type == LightType.SPOT and L.spot_size <= math.radians(120.0) else 6
             else:
                 continue
-            if len(moving) < budget:  # the maps there would be: at most the budget's
-                texels += faces * per_face
-            moving.append(li)
+            moving.append((li, faces * per_face))
         if not moving:
             return []
         rays = self._trace_rays(rc)
-        if rays <= 0 or texels <= rc.width * rc.height * rays * cost:
+        if rays <= 0:
             return []
-        return moving
+        ray_texels = rc.width * rc.height * rays * cost
+        return sorted(li for li, texels in moving if texels > ray_texels)
 
     def execute(self, rc, frame):
         import moderngl
@@ -498,7 +499,7 @@ class ShadowPass(Pass):
         rc.resources[SHADOW_SELECTION] = selection
         self.selection = selection
         key = (rc.scene.version, frame.view.tobytes() if any(L.type == LightType.SUN for L in scene.lights) else b"",
-               frame.index if self._dynamic(scene) else 0, tuple(selection.mapped))
+               frame.index if self._dynamic(scene) else 0, tuple(selection.mapped), tuple(selection.traced))
         if self._static_key == key and not self._dynamic(scene):
             return
         views = self._build_views(rc, frame, int(self["shadow_resolution"]))
@@ -581,6 +582,8 @@ class ShadowPass(Pass):
             lights[li, 24] = first
             lights[li, 25] = count
             lights[li, 26] = self._per_group.get(li, count)
+        for li in selection.traced:  # no views: shadows by rays of its own (direct.comp)
+            lights[li, 24] = -1.0
         rc.register_external(SCENE_LIGHTS, rc.scene.light_buf, scene_wide=True)
         rc.scene.light_buf.write(lights.tobytes())
         first, count = light_views.pop("world", (0, 0))

@@ -59,7 +59,8 @@ class DirectLightPass(Pass):
         Param("glossy_samples", 2, 1, 16, "light+BSDF sample pairs per light per pixel per frame"),
         Param("mesh_exact_max", 64, 0, 256, "emissive meshes up to this many triangles are integrated exactly"),
         Param("rt_shadow_rays", 4, 0, 8,
-              "lights without a shadow map: ray-traced shadow rays per pixel per frame (lights chosen by contribution)"),
+              "shadow rays per pixel per frame: for each light with size left to rays by the shadow pass, and "
+              "shared by the lights over the shadow-map budget (chosen by contribution)"),
         Param("far_samples", 4, 0, 8, "lights outside a tile's list: light samples per pixel per frame"),
         Param("cull_fraction", 0.05, 0.0, 1.0, "light culling when the graph has no light_cull pass (see light_cull.py)"),
     )
@@ -73,8 +74,9 @@ class DirectLightPass(Pass):
         self.rt_used = False
 
     def shadow_rays_per_pixel(self) -> int:
-        """Shadow rays per pixel per frame traced for lights without a shadow map (the
-        shadow pass leaves lights with size to them where rays cost less than maps)."""
+        """Shadow rays per pixel per frame traced for each light with size that the shadow
+        pass leaves to rays (where they cost less than its maps), and shared by the lights
+        over the budget."""
         return int(self["rt_shadow_rays"])
 
     def _cull(self, rc, frame):
