@@ -67,9 +67,13 @@ def main(argv=None):
     if a.errors:
         axes[1][-1].axis("off")
     device = (res.get("run") or {}).get("device", "")
-    fig.text(0.5, 0.01, f"{res.get('scene', '')}, {res['resolution'][0]}×{res['resolution'][1]} px. "
-             f"Times: {device}", ha="center", fontsize=6.5)
-    fig.tight_layout(rect=(0, 0.04, 1, 1))
+    import textwrap
+
+    caption = textwrap.fill(f"{res.get('scene', '')}, {res['resolution'][0]}×{res['resolution'][1]} px. "
+                            f"Times: {device}", width=int(cols * 2.4 * w / h * 14))
+    lines = caption.count("\n") + 1
+    fig.text(0.5, 0.01, caption, ha="center", va="bottom", fontsize=6.5)
+    fig.tight_layout(rect=(0, 0.03 * lines + 0.01, 1, 1), h_pad=1.5)
     out = a.out or os.path.join(a.folder, "strip.jpg")
     kw = {"pil_kwargs": {"quality": 88}} if out.lower().endswith((".jpg", ".jpeg")) else {}
     fig.savefig(out, dpi=a.dpi, **kw)

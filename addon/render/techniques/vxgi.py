@@ -26,9 +26,9 @@ docs/techniques/VXGI.md.
 | specular, min_aperture | vxgi_trace | | the specular cone and its narrowest aperture |
 | mip | vxgi_debug | 0–8 | mip level shown by GI_VXGI_Voxels |
 
-Accuracy (64 px, Cycles full, 4 frames): Cornell mean 0.97 / 1.01 / 0.91 / 0.87 of Cycles' at
-q0-q3, relMSE 0.062 / 0.060 / 0.048 / 0.044 (DIRECT 0.278); sun-lit room relMSE 0.081 / 0.038 /
-0.024 / 0.024 (DIRECT 0.084). Each directional face is read as a box along its own axis and a
+Accuracy (64 px, Cycles full, 4 frames): Cornell mean 0.93 / 0.96 / 0.87 / 0.84 of Cycles' at
+q0-q3, relMSE 0.065 / 0.060 / 0.055 / 0.055 (DIRECT 0.278); sun-lit room relMSE 0.088 / 0.037 /
+0.024 / 0.023 (DIRECT 0.084). Each directional face is read as a box along its own axis and a
 sample's radiance weights its faces by opacity, which keeps walls opaque and bright at the cost
 of a small thin-wall leak; box_ramp 0.5 (a ramp across texel boundaries) keeps cone samples
 continuous under motion; a moving cascade is read at mips 0-2 only, so its 4-voxel snap does
