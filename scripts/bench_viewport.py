@@ -83,16 +83,13 @@ def _fake_gpu(rec):
     sys.modules.update({"gpu": fake_gpu, "gpu_extras": extras, "gpu_extras.presets": presets})
 
 
-def _grid_scene(bpy, np, n=708):
-    """~10^6 triangles (2 n^2) in one grid mesh, a cube to move, a sun, a camera."""
-    from gi_preview.blender.demo_scenes import make_principled
-
-    sc = bpy.data.scenes.new("grid1m")
-    sc.render.engine = "GI_PREVIEW"
-    me = bpy.data.meshes.new("grid")
-    xs = np.linspace(-3.0, 3.0, n + 1, dtype=np.float32)
+def grid_mesh(bpy, np, n: int, half: float = 3.0, amp: float = 0.1, name: str = "grid"):
+    """A wavy n x n quad grid (2 n^2 triangles) of side 2 half, built with foreach_set
+    (fast at 10^6 triangles); no material."""
+    me = bpy.data.meshes.new(name)
+    xs = np.linspace(-half, half, n + 1, dtype=np.float32)
     x, y = np.meshgrid(xs, xs)
-    z = 0.1 * np.sin(4 * x) * np.cos(4 * y)
+    z = amp * np.sin(4 * x / half * 3.0) * np.cos(4 * y / half * 3.0)
     co = np.stack([x.ravel(), y.ravel(), z.ravel()], 1).astype(np.float32)
     me.vertices.add(len(co))
     me.vertices.foreach_set("co", co.ravel())
@@ -105,6 +102,16 @@ def _grid_scene(bpy, np, n=708):
     me.polygons.add(nf)
     me.polygons.foreach_set("loop_start", np.arange(0, 4 * nf, 4, dtype=np.int32))
     me.update()
+    return me
+
+
+def _grid_scene(bpy, np, n=708):
+    """~10^6 triangles (2 n^2) in one grid mesh, a cube to move, a sun, a camera."""
+    from gi_preview.blender.demo_scenes import make_principled
+
+    sc = bpy.data.scenes.new("grid1m")
+    sc.render.engine = "GI_PREVIEW"
+    me = grid_mesh(bpy, np, n)
     me.materials.append(make_principled("grid", (0.7, 0.7, 0.7)))
     sc.collection.objects.link(bpy.data.objects.new("grid", me))
     cm = bpy.data.meshes.new("cube")
