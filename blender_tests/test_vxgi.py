@@ -6,22 +6,21 @@ Small on purpose (32-40 px, quality 0 = 32³ voxels x 2 cascades, Cycles 128 spp
 sweeps, the 60-frame stability run and the leak table are in scripts/bench_vxgi.py
 (docs/results/vxgi/). Measured (Blender 5.0.1, llvmpipe, 40 px, q0), printed by each test:
 * energy audit (a closed box whose voxels all show radiance L, 24 px): E / (pi L) 0.893
-  with edge opacity 0, 0.927 with the default 0.2 (edge-on occluders show the surface's
-  radiance; the ideal is 1, nothing can add energy); asserted within [0.8, 1.02] and
-  [0.9, 1.1].
-* cornell vs "full": relMSE 0.0661 (DIRECT 0.289), mean ratio 0.935; asserted: relMSE <= 0.4 x
+  with edge opacity 0, 0.780 with the default 0.1 (the ideal is 1; nothing can add
+  energy); asserted within [0.8, 1.02] and [0.6, 1.02].
+* cornell vs "full": relMSE 0.0626 (DIRECT 0.289), mean ratio 0.976; asserted: relMSE <= 0.4 x
   DIRECT and the ratio within +-15 %; the voxel view is lit on >= 95 % of DIRECT's lit pixels.
-* cornell one-bounce indirect at q2, two grid placements: 0.909 / 0.996 of Cycles'; asserted
+* cornell one-bounce indirect at q2, two grid placements: 0.967 / 1.055 of Cycles'; asserted
   within +-15 %.
-* sunlit_room vs "full": relMSE 0.0925 (DIRECT 0.108), mean ratio 1.197: beats DIRECT;
+* sunlit_room vs "full": relMSE 0.0853 (DIRECT 0.108), mean ratio 1.151: beats DIRECT;
   asserted relMSE < DIRECT's and ratio <= 1.25.
-* two_rooms: leak 0.0119 of the lit room's mean (default), 0.0319 undilated; asserted:
+* two_rooms: leak 0.0200 of the lit room's mean (default), 0.0422 undilated; asserted:
   finite, in [0, 1), default <= 0.025 and below the undilated voxelisation's.
 * moving light and camera (6 frames, 1 sample each): frame-to-frame mean |diff| asserted <= 1.25x
   Cycles' (the cones do not rotate from frame to frame).
 * cascade snap (a camera move that snaps the fine cascade): indirect step / indirect mean
-  0.027; asserted <= 0.045.
-* the viewport's first frame (history kept, no warm-up): 1.002 of the F12 image's mean,
+  0.026; asserted <= 0.045.
+* the viewport's first frame (history kept, no warm-up): 1.001 of the F12 image's mean,
   asserted within 1.5 %, since the injection converges within a reset frame (reset_bounces).
 * many lights (40 point lights, per-voxel light culling against every light at every voxel):
   see the test.
@@ -73,13 +72,13 @@ def test_cornell_beats_direct_and_mean_bounded():
         first_ratio = _ratio(first, img)
         print(f"cornell VXGI q{Q}: relMSE vs full {err:.4f} (DIRECT {direct:.4f}), mean ratio {ratio:.3f}, "
               f"frame {res.frame_ms:.0f} ms; viewport first frame / F12 {first_ratio:.4f}")
-        assert abs(first_ratio - 1) <= 0.015  # 1.0020 measured (q0, 40 px)
+        assert abs(first_ratio - 1) <= 0.015  # 1.0010 measured (q0, 40 px)
         assert np.isfinite(img).all() and img.min() >= 0.0
         assert not [s for s in res.skipped_passes if s.name.startswith("vxgi")]
         if err > 0.6 * direct or abs(ratio - 1) > 0.15:
             _dump("cornell", ours=img, cycles=ref)
-        assert err <= 0.4 * direct  # 0.0661 vs 0.289 measured
-        assert abs(ratio - 1) <= 0.15  # the acceptance band (0.935 measured)
+        assert err <= 0.4 * direct  # 0.0626 vs 0.289 measured
+        assert abs(ratio - 1) <= 0.15  # the acceptance band (0.976 measured)
         ind = res.aovs["GI_IndirectDiffuse"][..., :3]
         assert ind.min() >= 0.0 and ind.mean() > 0.2 * img[..., :3].mean()
         ao = res.aovs["GI_AO"][..., 0]
@@ -100,7 +99,7 @@ def test_cornell_one_bounce_at_q2_two_grid_placements():
     """The Cornell box's one-bounce indirect light (multi-bounce off) at q2 = 64^3 voxels
     against Cycles' (one_bounce - direct), at the default grid and with the voxel size 6 %
     smaller (the walls then fall elsewhere in the texels and the cascade's last layers):
-    within +-15 % at both. Measured 0.909 / 0.996 (40 px)."""
+    within +-15 % at both. Measured 0.967 / 1.055 (40 px)."""
     sc = demo_scenes.build_demo("cornell", resolution=RES)
     try:
         sd = _export(sc)
@@ -138,7 +137,7 @@ def test_sunlit_room_beats_direct():
         if err >= direct:
             _dump("sunlit_room", ours=img, cycles=ref)
         assert np.isfinite(img).all() and img.min() >= 0.0
-        # the acceptance: beats DIRECT (0.0925 vs 0.108 measured, mean ratio 1.197)
+        # the acceptance: beats DIRECT (0.0853 vs 0.108 measured, mean ratio 1.151)
         assert err < direct and _ratio(img, ref) <= 1.25
     finally:
         session.release_session("vxgi_sunlit")
@@ -164,9 +163,9 @@ def test_thin_wall_leak_is_measured():
         print(f"two_rooms VXGI q{Q}: leak (dark-room mean - Cycles) / lit-room mean {lit_level:.3f}: "
               + ", ".join(f"{k} {v:.4f}" for k, v in leaks.items()))
         assert all(0.0 <= v < 1.0 for v in leaks.values())
-        # 0.0119 measured
+        # 0.0200 measured
         assert leaks["default"] <= 0.025
-        assert leaks["default"] < leaks["unmitigated"]  # the dilation mitigates (0.0119 vs 0.0319)
+        assert leaks["default"] < leaks["unmitigated"]  # the dilation mitigates (0.0200 vs 0.0422)
     finally:
         bpy.data.scenes.remove(dark)
         bpy.data.scenes.remove(lit)
@@ -177,12 +176,7 @@ def test_energy_audit_closed_box():
     shows L on both sides, so the six cones must return E = pi L at every pixel of a closed
     box (GI_IndirectDiffuse holds E / pi in audit mode). What is missing is lost by the cone
     gather itself: cones leaking through walls, the receiver's own layer read from behind,
-    starts pushed past a corner's other wall (the edge-on occluders of edge_opacity carry the
-    surface's radiance, so they stop cones without darkening them). Measured (q0, 24 px):
-    0.893 with edge opacity 0, 0.927 at the default 0.2 (0.780 at 0.1 when edge-on occluders
-    were black); the rest is lost at the box's edges, where a cone's start lies in or past the
-    other wall (those pixels read 0.6-0.7), and by cones crossing the box's edges and corners
-    through coarse mips whose texels the walls only partly fill."""
+    black edge-on occluders (edge_opacity), starts pushed past a corner's other wall."""
     sc = scenes_raster3d.build("furnace_box", 24)
     try:
         sd = _export(sc)
@@ -200,7 +194,7 @@ def test_energy_audit_closed_box():
         print(f"energy audit (closed box, q{Q}): E/(pi L) edge opacity 0: {got['edge0']:.3f}, "
               f"default: {got['default']:.3f}")
         assert 0.8 <= got["edge0"] <= 1.02
-        assert 0.9 <= got["default"] <= 1.1
+        assert 0.6 <= got["default"] <= got["edge0"] + 1e-3
     finally:
         bpy.data.scenes.remove(sc)
 

@@ -30,8 +30,7 @@
   (``light_cull.light_ranges``, DIRECT's) holds its centre, the others by ``cull_samples``
   power-sampled lights (unbiased). Writes level 0 of ``vxgi.radiance``: six directional volumes
   (the radiance each voxel emits towards ±x, ±y, ±z: the surface side facing that way;
-  a dilated voxel shows only the side it lies on; opacity at least ``edge_opacity``, the
-  added coverage showing the surface's darker side),
+  a dilated voxel shows only the side it lies on; opacity at least ``edge_opacity``),
   then builds the anisotropic mips (``shaders/vxgi/mip.comp``, front-to-back compositing of
   the two children along each direction, as in the paper).
 * ``VoxelTracePass`` (compute): per pixel, six diffuse cones (weights integrating the
@@ -317,9 +316,9 @@ class VoxelInjectPass(Pass):
         Param("multi_bounce", True, doc="inject last frame's indirect irradiance (and sky light) into the voxels"),
         Param("shadow_offset", 0.5, 0.0, 4.0, "shadow lookups start this many voxels off the voxel's surface"),
         Param("mesh_exact_max", 64, 0, 256, "emissive meshes up to this many triangles are integrated exactly"),
-        Param("edge_opacity", 0.2, 0.0, 1.0, "smallest level-0 opacity of an occupied voxel towards any "
-              "direction (the opacity towards a direction is the surface's projected coverage |n.D|; an "
-              "edge-on surface shows the radiance of its darker side at this opacity: against leaks)"),
+        Param("edge_opacity", 0.1, 0.0, 1.0, "smallest level-0 opacity of an occupied voxel towards any "
+              "direction (the opacity towards a direction is the surface's projected coverage |n.D|: an "
+              "edge-on surface shows black at this opacity; against leaks)"),
         Param("reset_bounces", 6, 1, 16, "injection runs within the frame after a history reset (first frame, "
               "camera cut, parameter change), one bounce more each: the volume starts converged instead of "
               "building up one bounce per frame (1 = that build-up)"),

@@ -18,7 +18,7 @@ docs/techniques/VXGI.md.
 | step | inject, trace | 0.1–2 | cone step, fraction of the cone diameter |
 | normal_offset | inject, trace | 0–4 | cones start this many voxels off the surface |
 | opacity_scale | inject, trace | 1–4 | opacity bias (against leaks) |
-| edge_opacity | vxgi_inject | 0–1 | smallest level-0 opacity of an occupied voxel (edge-on surfaces occlude, showing their darker side; 0.2) |
+| edge_opacity | vxgi_inject | 0–1 | smallest level-0 opacity of an occupied voxel (edge-on surfaces occlude; 0.1) |
 | footprint_cap | inject, trace | 0–4 | diffuse cone footprint <= this x the height over the receiver's plane (0.35) |
 | audit_radiance | inject, trace | 0–1e3 | energy audit: every voxel side shows this radiance, GI_IndirectDiffuse = E/π |
 | max_distance | inject, trace | 0–1e4 | cone length (0: the coarsest cascade's side) |
@@ -26,14 +26,14 @@ docs/techniques/VXGI.md.
 | specular, min_aperture | vxgi_trace | | the specular cone and its narrowest aperture |
 | mip | vxgi_debug | 0–8 | mip level shown by GI_VXGI_Voxels |
 
-Accuracy (64 px, Cycles full, 4 frames): Cornell mean 0.93 / 0.96 / 0.87 / 0.84 of Cycles' at
-q0-q3, relMSE 0.065 / 0.060 / 0.055 / 0.055 (DIRECT 0.278); sun-lit room relMSE 0.088 / 0.037 /
-0.024 / 0.023 (DIRECT 0.084). Each directional face is read as a box along its own axis and a
+Accuracy (64 px, Cycles full, 4 frames): Cornell mean 0.97 / 1.01 / 0.91 / 0.87 of Cycles' at
+q0-q3, relMSE 0.062 / 0.060 / 0.048 / 0.044 (DIRECT 0.278); sun-lit room relMSE 0.081 / 0.038 /
+0.024 / 0.024 (DIRECT 0.084). Each directional face is read as a box along its own axis and a
 sample's radiance weights its faces by opacity, which keeps walls opaque and bright at the cost
 of a small thin-wall leak; box_ramp 0.5 (a ramp across texel boundaries) keeps cone samples
 continuous under motion; a moving cascade is read at mips 0-2 only, so its 4-voxel snap does
 not shift the coarser mips. The largest frame-to-frame steps left sit on G-buffer edges. Energy audit
-(closed-box furnace, ideal 1): 0.93 at the defaults, 0.89 with edge opacity 0
+(closed-box furnace, ideal 1): 0.69 at the defaults, 0.87 with edge opacity 0
 (docs/techniques/VXGI.md).
 
 Many lights: a reset frame computes the direct light once (its later bounce runs load it), and
