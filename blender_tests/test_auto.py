@@ -146,14 +146,18 @@ def test_every_single_technique_is_a_candidate_and_restir_gi_keeps_its_filter():
     assert auto.Auto(("DIRECT", "SSR")).graph_class is techniques.get("DIRECT").graph_class
 
 
-def test_budget_on_a_scene_outside_the_table_fits_and_beats_direct():
+def test_budget_on_a_scene_outside_the_table_fits_and_beats_direct(monkeypatch):
     """A closed room lit around a corner (not in the table; most of what the camera sees is
     indirect): at a budget equal to the median predicted cost of the candidates AUTO picks one
     predicted to fit and is better than DIRECT against Cycles full. The frame time it measured
-    is printed, not asserted (llvmpipe's times; speed is the benchmarks' business)."""
+    is printed, not asserted (llvmpipe's times; speed is the benchmarks' business). Re-planning
+    from measured frames is off here: it depends on how busy the machine is (two test workers
+    share the cores), and the re-planning tests below cover it."""
     import statistics
 
     import scenes_auto
+
+    monkeypatch.setattr(auto, "REPLAN_FACTOR", float("inf"))
 
     sc = scenes_auto.build("around_corner", SIZE)
     try:

@@ -43,65 +43,6 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
-_BYTES = {"f1": 1, "u1": 1, "i1": 1, "f2": 2, "u2": 2, "i2": 2, "f4": 4, "u4": 4, "i4": 4, "nu1": 1, "nu2": 2,
-          "ni1": 1, "ni2": 2}
-
-
-class GLBytes:
-    """The bytes of the moderngl textures, buffers and render targets created and not yet
-    released (their constructors and ``release`` wrapped while installed)."""
-
-    KINDS = ("texture", "texture3d", "texture_array", "texture_cube", "depth_texture", "buffer",
-             "renderbuffer", "depth_renderbuffer")
-
-    def __init__(self):
-        self.live: dict[int, int] = {}
-        self._saved = []
-
-    @staticmethod
-    def size_of(kind: str, obj) -> int:
-        if kind == "buffer":
-            return int(obj.size)
-        if kind in ("depth_texture", "depth_renderbuffer"):
-            w, h = obj.size
-            return int(w * h * 4)
-        per = int(getattr(obj, "components", 4)) * _BYTES.get(str(getattr(obj, "dtype", "f1")), 4)
-        n = int(math.prod(obj.size))
-        return int(n * per * (6 if kind == "texture_cube" else 1))
-
-    def install(self):
-        import moderngl
-
-        live = self.live
-
-        def wrap(kind, fn):
-            def ctor(ctx, *a, **kw):
-                obj = fn(ctx, *a, **kw)
-                live[id(obj)] = self.size_of(kind, obj)
-                cls = type(obj)
-                if not getattr(cls, "_gi_bytes_wrapped", False):
-                    rel = cls.release
-
-                    def release(o, *ra, **rkw):
-                        live.pop(id(o), None)
-                        return rel(o, *ra, **rkw)
-                    self._saved.append((cls, "release", rel))
-                    cls.release = release
-                    cls._gi_bytes_wrapped = True
-                return obj
-            return ctor
-
-        for kind in self.KINDS:
-            fn = getattr(moderngl.Context, kind, None)
-            if fn is not None:
-                self._saved.append((moderngl.Context, kind, fn))
-                setattr(moderngl.Context, kind, wrap(kind, fn))
-        return self
-
-    def mb(self) -> float:
-        return sum(self.live.values()) / 2**20
-
-
 def add_lights(bpy, sc, n: int, seed: int = 3):
     """N sphere lights (3 cm) on a jittered grid under the room's ceiling, 100 W in all."""
     import numpy as np
@@ -152,7 +93,9 @@ def measure(techniques, quality, sizes, lights, triangles, axis_size, samples) -
     from gi_preview.render import session
     from gi_preview.render.gl import get_gl
 
-    gl_bytes = GLBytes().install()
+    from check_growth import GLCensus
+
+    gl_bytes = GLCensus().install()
     sc = bv._room_scene(bpy)
     out = {"techniques": techniques, "quality": quality, "samples": samples, "axis_size": axis_size,
            "pixels": {}, "lights": {}, "triangles": {}}

@@ -32,12 +32,31 @@ _KINDS = ("texture", "texture3d", "texture_array", "texture_cube", "depth_textur
           "simple_vertex_array")
 
 
+_BYTES = {"f1": 1, "u1": 1, "i1": 1, "nu1": 1, "ni1": 1, "f2": 2, "u2": 2, "i2": 2, "nu2": 2, "ni2": 2,
+          "f4": 4, "u4": 4, "i4": 4}
+
+
+def gl_object_bytes(kind: str, obj) -> int:
+    """The bytes of a moderngl texture, buffer or render target as created (mip levels not
+    counted); 0 for the other kinds."""
+    if kind == "buffer":
+        return int(obj.size)
+    if kind in ("depth_texture", "depth_renderbuffer"):
+        w, h = obj.size
+        return int(w * h * 4)
+    if kind not in ("texture", "texture3d", "texture_array", "texture_cube", "renderbuffer"):
+        return 0
+    per = int(getattr(obj, "components", 4)) * _BYTES.get(str(getattr(obj, "dtype", "f1")), 4)
+    return int(math.prod(obj.size) * per * (6 if kind == "texture_cube" else 1))
+
+
 class GLCensus:
     """Counts the moderngl objects created and not released (by wrapping the Context's
-    constructors and each object's ``release``). ``install()`` / ``remove()``."""
+    constructors and each object's ``release``), and their bytes. ``install()`` / ``remove()``."""
 
     def __init__(self):
         self.live: dict[int, str] = {}
+        self.bytes: dict[int, int] = {}
         self.created = 0
         self._saved = []
 
@@ -51,12 +70,14 @@ class GLCensus:
                 obj = fn(ctx, *a, **kw)
                 census.created += 1
                 census.live[id(obj)] = name
+                census.bytes[id(obj)] = gl_object_bytes(name, obj)
                 cls = type(obj)
                 if not getattr(cls, "_gi_census_wrapped", False):
                     rel = cls.release
 
                     def release(self, *ra, **rkw):
                         census.live.pop(id(self), None)
+                        census.bytes.pop(id(self), None)
                         return rel(self, *ra, **rkw)
                     census._saved.append((cls, "release", rel))
                     cls.release = release
@@ -81,6 +102,10 @@ class GLCensus:
 
     def count(self) -> int:
         return len(self.live)
+
+    def mb(self) -> float:
+        """MiB of the live textures, buffers and render targets."""
+        return sum(self.bytes.values()) / 2**20
 
     def by_kind(self) -> dict[str, int]:
         out: dict[str, int] = {}

@@ -18,7 +18,8 @@
 // component (lib/scene_rt.glsl): their unshadowed sum minus the light shadows take away,
 // estimated with u_rt_shadow_rays lights per pixel per frame chosen by weighted reservoir
 // sampling in proportion to their unshadowed contribution, one shadow ray to a point sampled
-// on each (unbiased: c_j (1 - V_j) W / w_j). Lights not in the tile's list are
+// on each (c_j b_j W / w_j, b_j the blocked share of the weights of the rays to that light).
+// Lights not in the tile's list are
 // estimated with u_far_samples light samples per pixel chosen by power (select_light), counted
 // only when the chosen light is not listed (unbiased). A light with size that the shadow pass
 // left to rays because its moving maps would cost more (Light.shadow.x = -1) gets
@@ -149,7 +150,8 @@ vec2 rt_light_sample(Light L, vec3 Po, vec3 N, vec3 Ng, inout Rng rng) {
     vec4 u = rng_next4(rng);
     LightSample ls = sample_light(L, Po, u.xy, u.z);
     float cosn = dot(ls.dir, N);
-    if (ls.pdf <= 0.0 || cosn <= 0.0) return vec2(0.0);  // nothing sampled (inside a sphere light)
+    // nothing sampled (inside a sphere light), or no part of the irradiance
+    if (ls.pdf <= 0.0 || cosn <= 0.0) return vec2(0.0);
     float w = luminance(ls.Li) * cosn / (ls.delta ? 1.0 : ls.pdf);
     bool blocked = dot(ls.dir, Ng) <= 0.0 || scene_occluded(Po, ls.dir, 0.0, ls.dist * (1.0 - 1e-4));
     return vec2(w, blocked ? 1.0 : 0.0);
