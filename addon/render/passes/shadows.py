@@ -77,6 +77,11 @@ VIEW_FLOATS = 32
 MAX_ATLAS = 8192
 
 
+def _single_view(L) -> bool:
+    """A spot light whose cone fits one perspective view (at most 120 degrees)."""
+    return L.type == LightType.SPOT and L.spot_size <= math.radians(120.0)
+
+
 def perspective(fov: float, near: float, far: float) -> np.ndarray:
     f = 1.0 / math.tan(fov / 2)
     return np.array([[f, 0, 0, 0], [0, f, 0, 0],
@@ -320,7 +325,7 @@ class ShadowPass(Pass):
         far = float(np.linalg.norm(origin - center)) + radius * 1.01 + 1e-3
         near = max(far * 1e-5, min(1e-3, far * 1e-3))  # 1 mm, or a thousandth of a smaller scene
         L = rec.get("light")
-        if L is not None and L.type == LightType.SPOT and L.spot_size <= math.radians(120.0):
+        if L is not None and _single_view(L):
             # one perspective view around the cone (10% margin for the blend and scale)
             fov = min(math.radians(150.0), L.spot_size * 1.1 + math.radians(2.0))
             proj = perspective(fov, near, far)
@@ -474,13 +479,9 @@ class ShadowPass(Pass):
         moving = []
         for li in keep:
             L = scene.lights[li] if li < n else None
-            if L is None:  # an emissive mesh: six faces per point on it
-                faces = 6
-            elif L.type == LightType.AREA or (L.type in (LightType.POINT, LightType.SPOT) and L.radius > 0):
-                faces = 1 if L.type == LightType.SPOT and L.spot_size <= math.radians(120.0) else 6
-            else:
-                continue
-            moving.append((li, faces * per_face))
+            rec = {"type": LIGHT_MESH} if L is None else {"type": int(L.type), "light": L}
+            if self._has_size(rec):  # views per point on the light: one spot view or six faces
+                moving.append((li, (1 if L is not None and _single_view(L) else 6) * per_face))
         if not moving:
             return []
         rays = self._trace_rays(rc)
